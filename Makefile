@@ -1,0 +1,24 @@
+# Two commands do everything on a fresh machine with Python 3.11+ and make.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+OUT := out
+
+.PHONY: run test clean
+
+$(BIN)/palpd: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $@
+
+run: $(BIN)/palpd
+	mkdir -p $(OUT)
+	$(BIN)/palpd scan --scene config/scenes/paper.toml --strategy raster \
+		--report $(OUT)/paper-report.json --plot $(OUT)/paper-map.png
+
+test: $(BIN)/palpd
+	$(BIN)/python -m pytest
+
+clean:
+	rm -rf $(VENV) $(OUT) build *.egg-info

@@ -1,0 +1,81 @@
+"""What palpd needs from a robot and a force sensor, whatever carries the bytes.
+
+Backends implement these; the simulator is one backend among others.
+"""
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+
+# Status bits a robot reports with each joint state (the bridge protocol carries the same bits).
+STATUS_AMPLIFIER_FAULT = 0x01
+STATUS_ESTOP = 0x02
+STATUS_WATCHDOG_TRIPPED = 0x04
+STATUS_OVER_TEMPERATURE = 0x08
+STATUS_AMPLIFIERS_ON = 0x10
+
+# Flags a force sensor sets on a sample it cannot vouch for.
+SAMPLE_SATURATED = 0x01
+SAMPLE_INVALID = 0x02
+SAMPLE_STALE = 0x04
+
+
+@dataclass(slots=True)
+class JointState:
+    t_s: float
+    counts: tuple[int, int, int]
+    angles_rad: tuple[float, float, float]
+    status: int = 0
+
+
+@dataclass(slots=True)
+class ForceSample:
+    """Force (N) and torque (N*mm) on the tool, in the sensor's own frame."""
+
+    t_s: float
+    force_n: tuple[float, float, float]
+    torque_n_mm: tuple[float, float, float]
+    flags: int = 0
+
+
+class Robot(abc.ABC):
+    """A 3-joint arm driven by motor currents and read through its encoders."""
+
+    @abc.abstractmethod
+    def enable(self) -> None:
+        """Turn the amplifiers on."""
+
+    @abc.abstractmethod
+    def disable(self) -> None:
+        """Zero the currents and turn the amplifiers off; must never raise for a healthy link."""
+
+    @abc.abstractmethod
+    def read(self) -> JointState: ...
+
+    @abc.abstractmethod
+    def write(self, currents_a: tuple[float, float, float]) -> None: ...
+
+    def close(self) -> None:
+        self.disable()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class ForceSensor(abc.ABC):
+    """A six-axis force/torque sensor giving timestamped samples."""
+
+    @abc.abstractmethod
+    def read(self) -> ForceSample: ...
+
+    def close(self) -> None:
+        """Release the device; the default has nothing to release."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -1,0 +1,180 @@
+"""The Phantom Premium 1.5A as a mechanism: kinematics, encoders, motors, gravity.
+
+Frame and equations follow Cavusoglu et al. (the PHANToM kinematic model):
+x right, y up, z towards the user; home (all joints at zero) is the origin.
+Every function here works on plain floats and tuples because the servo loop
+calls them each millisecond and 3-vectors in numpy cost more than they save.
+"""
+from __future__ import annotations
+
+import math
+
+L1_M = 0.2095
+L2_M = 0.1695
+CAPSTAN_RATIO = (13.3, 11.2, 11.2)
+ENCODER_COUNTS_PER_REV = 1024 * 4  # 1024 CPR read in quadrature
+RAD_PER_COUNT = tuple(2.0 * math.pi / (ENCODER_COUNTS_PER_REV * eta) for eta in CAPSTAN_RATIO)
+MOTOR_KT_NM_PER_A = 0.0234  # Maxon RE25
+NOMINAL_CURRENT_A = 1.24
+PEAK_CURRENT_A = 5.5
+# Joint ranges of the 1.5A, generous enough for its published workspace.
+JOINT_LIMITS_RAD = ((-1.0, 1.0), (-0.6, 1.2), (-0.6, 1.2))
+
+# Lumped gravity model: link-1 mass at its midpoint, link-2 and tip mass at the tip.
+# The real arm is counterbalanced; these are the residual, uncompensated masses.
+LINK1_MASS_KG = 0.045
+TIP_MASS_KG = 0.035
+GRAVITY_M_S2 = 9.81
+
+Vec3 = tuple[float, float, float]
+
+
+def forward(q: Vec3) -> Vec3:
+    """Tip position (m) for joint angles q (rad)."""
+    t1, t2, t3 = q
+    reach = L1_M * math.cos(t2) + L2_M * math.sin(t3)
+    return (
+        math.sin(t1) * reach,
+        L2_M - L2_M * math.cos(t3) + L1_M * math.sin(t2),
+        -L1_M + math.cos(t1) * reach,
+    )
+
+
+def jacobian(q: Vec3) -> tuple[Vec3, Vec3, Vec3]:
+    """Rows d(x, y, z)/d(q1, q2, q3)."""
+    t1, t2, t3 = q
+    s1, c1 = math.sin(t1), math.cos(t1)
+    s2, c2 = math.sin(t2), math.cos(t2)
+    s3, c3 = math.sin(t3), math.cos(t3)
+    reach = L1_M * c2 + L2_M * s3
+    return (
+        (c1 * reach, -s1 * L1_M * s2, s1 * L2_M * c3),
+        (0.0, L1_M * c2, L2_M * s3),
+        (-s1 * reach, -c1 * L1_M * s2, c1 * L2_M * c3),
+    )
+
+
+def joint_torques(q: Vec3, force_n: Vec3) -> Vec3:
+    """tau = J^T F: the joint torques that push the tip with force_n."""
+    j = jacobian(q)
+    fx, fy, fz = force_n
+    return (
+        j[0][0] * fx + j[1][0] * fy + j[2][0] * fz,
+        j[0][1] * fx + j[1][1] * fy + j[2][1] * fz,
+        j[0][2] * fx + j[1][2] * fy + j[2][2] * fz,
+    )
+
+
+def tip_velocity(q: Vec3, qdot: Vec3) -> Vec3:
+    j = jacobian(q)
+    return tuple(row[0] * qdot[0] + row[1] * qdot[1] + row[2] * qdot[2] for row in j)  # type: ignore[return-value]
+
+
+class UnreachableError(ValueError):
+    """The requested tip position is outside the arm's reach or joint limits."""
+
+
+def inverse(p: Vec3) -> Vec3:
+    """Joint angles for tip position p (m), elbow as at home; refuses what the arm cannot reach."""
+    x, y, z = p
+    reach = math.hypot(x, z + L1_M)
+    height = y - L2_M
+    cos_elbow = (reach * reach + height * height - L1_M * L1_M - L2_M * L2_M) / (2.0 * L1_M * L2_M)
+    if not -1.0 <= cos_elbow <= 1.0 or reach < 1e-9:
+        raise UnreachableError(f"tip position {_mm(p)} mm is out of the arm's reach")
+    # phi = t3 - pi/2 is link 2's absolute angle; elbow = phi - t2 stays negative as at home.
+    elbow = -math.acos(cos_elbow)
+    t2 = math.atan2(height, reach) - math.atan2(L2_M * math.sin(elbow), L1_M + L2_M * math.cos(elbow))
+    q = (math.atan2(x, z + L1_M), t2, elbow + t2 + math.pi / 2.0)
+    check_joint_limits(q, p)
+    return q
+
+
+def check_joint_limits(q: Vec3, p: Vec3 | None = None) -> None:
+    for i, (angle, (low, high)) in enumerate(zip(q, JOINT_LIMITS_RAD)):
+        if not low <= angle <= high:
+            where = f" for tip position {_mm(p)} mm" if p is not None else ""
+            raise UnreachableError(
+                f"joint {i + 1} would be at {angle:.3f} rad{where}, outside its limits [{low}, {high}] rad"
+            )
+
+
+def gravity_torques(q: Vec3) -> Vec3:
+    """Joint torques gravity applies (from the potential of the lumped masses)."""
+    _, t2, t3 = q
+    return (
+        0.0,
+        -GRAVITY_M_S2 * math.cos(t2) * L1_M * (LINK1_MASS_KG / 2.0 + TIP_MASS_KG),
+        -GRAVITY_M_S2 * TIP_MASS_KG * L2_M * math.sin(t3),
+    )
+
+
+def counts_to_angles(counts: tuple[int, int, int]) -> Vec3:
+    return tuple(c * r for c, r in zip(counts, RAD_PER_COUNT))  # type: ignore[return-value]
+
+
+def angles_to_counts(q: Vec3) -> tuple[int, int, int]:
+    return tuple(int(round(a / r)) for a, r in zip(q, RAD_PER_COUNT))  # type: ignore[return-value]
+
+
+def torque_per_amp(joint: int) -> float:
+    return CAPSTAN_RATIO[joint] * MOTOR_KT_NM_PER_A
+
+
+def torques_to_currents(tau: Vec3, limit_a: float = PEAK_CURRENT_A) -> Vec3:
+    """Motor currents for joint torques, clamped to +-limit_a."""
+    out = []
+    for joint, torque in enumerate(tau):
+        amps = torque / torque_per_amp(joint)
+        out.append(limit_a if amps > limit_a else -limit_a if amps < -limit_a else amps)
+    return tuple(out)  # type: ignore[return-value]
+
+
+def currents_to_torques(currents: Vec3) -> Vec3:
+    return tuple(i * torque_per_amp(j) for j, i in enumerate(currents))  # type: ignore[return-value]
+
+
+def link2_rotation(q: Vec3) -> tuple[Vec3, Vec3, Vec3]:
+    """Orientation of link 2 (rows of a rotation matrix, base frame): yaw by q1, pitch by q3."""
+    t1, _, t3 = q
+    s1, c1, s3, c3 = math.sin(t1), math.cos(t1), math.sin(t3), math.cos(t3)
+    # Ry(t1) @ Rx(-t3): pitching link 2 forward by t3 about the x axis, then yawing the whole arm.
+    return (
+        (c1, -s1 * s3, s1 * c3),
+        (0.0, c3, s3),
+        (-s1, -c1 * s3, c1 * c3),
+    )
+
+
+def _mm(p: Vec3) -> str:
+    return "(" + ", ".join(f"{1000.0 * v:.1f}" for v in p) + ")"
+
+
+def _transpose_times(m, v: Vec3) -> Vec3:
+    return (
+        m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2],
+        m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
+        m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2],
+    )
+
+
+def _times(m, v: Vec3) -> Vec3:
+    return (
+        m[0][0] * v[0] + m[0][1] * v[1] + m[0][2] * v[2],
+        m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
+        m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2],
+    )
+
+
+def tilt_to_base(q: Vec3, q_aligned: Vec3, v: Vec3) -> Vec3:
+    """A vector measured by a sensor fixed to link 2, aligned with the base at q_aligned, in base axes.
+
+    The sensor turns with link 2, so away from q_aligned its axes tilt: the
+    seed paper's error source when only the sensor's z axis is read.
+    """
+    return _times(link2_rotation(q), _transpose_times(link2_rotation(q_aligned), v))
+
+
+def base_to_tilt(q: Vec3, q_aligned: Vec3, v: Vec3) -> Vec3:
+    """Inverse of tilt_to_base."""
+    return _times(link2_rotation(q_aligned), _transpose_times(link2_rotation(q), v))

@@ -1,0 +1,125 @@
+"""Scene files: the simulated bench (tissue, lumps, sensor) in the TOML format DESIGN.md fixes."""
+from __future__ import annotations
+
+import csv
+import math
+from pathlib import Path
+from typing import Annotated, Optional
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from drivers.errors import DriverInitializationError, describe_validation_error
+from drivers.tomlfile import read_toml
+
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+
+
+class SceneError(DriverInitializationError):
+    """A scene file is missing, unreadable or invalid; the message is one line naming the file."""
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Tissue(_Strict):
+    size_mm: tuple[PositiveFloat, PositiveFloat] = (60.0, 60.0)
+    stiffness_n_per_mm: PositiveFloat = 0.12
+    exponent: Annotated[float, Field(ge=0.5, le=3.0)] = 1.0
+    damping_n_s_per_mm: NonNegativeFloat = 0.0
+    map: Optional[str] = None
+
+
+class Lump(_Strict):
+    center_mm: tuple[FiniteFloat, FiniteFloat]
+    radius_mm: PositiveFloat
+    depth_mm: NonNegativeFloat = 0.0
+    stiffness_n_per_mm: PositiveFloat
+
+
+class Sensor(_Strict):
+    noise_n: NonNegativeFloat = 0.01
+    tilt: bool = False
+    bias_n: NonNegativeFloat = 0.05  # magnitude of the unknown offset per axis, tared away by palpd
+
+
+class Placement(_Strict):
+    origin_mm: tuple[FiniteFloat, FiniteFloat, FiniteFloat] = (0.0, -60.0, 0.0)  # tissue origin, robot frame
+    rotation_deg: FiniteFloat = 0.0  # tissue turned about its normal, as the paper's test sets were
+
+
+class Scene(_Strict):
+    name: Annotated[str, Field(min_length=1)]
+    seed: Annotated[int, Field(ge=0)] = 0
+    tissue: Tissue = Tissue()
+    lump: list[Lump] = []
+    sensor: Sensor = Sensor()
+    placement: Placement = Placement()
+
+    @model_validator(mode="after")
+    def _lumps_touch_the_tissue(self):
+        half_w, half_h = self.tissue.size_mm[0] / 2, self.tissue.size_mm[1] / 2
+        for i, lump in enumerate(self.lump):
+            cx, cy = lump.center_mm
+            gap = math.hypot(max(abs(cx) - half_w, 0.0), max(abs(cy) - half_h, 0.0))
+            if gap >= lump.radius_mm:
+                raise ValueError(f"lump {i} at {lump.center_mm} mm lies wholly outside the {self.tissue.size_mm} mm tissue")
+        return self
+
+
+def load_scene(path: str | Path) -> Scene:
+    path = Path(path)
+    data = read_toml(path, "scene file", SceneError)
+    try:
+        scene = Scene.model_validate(data)
+    except ValidationError as exc:
+        raise SceneError(describe_validation_error(str(path), exc)) from None
+    if scene.tissue.map is not None:
+        map_path = (path.parent / scene.tissue.map)
+        load_stiffness_map(map_path)  # validated now, so a bad map fails before the robot moves
+        scene = scene.model_copy(update={"tissue": scene.tissue.model_copy(update={"map": str(map_path)})})
+    return scene
+
+
+def load_stiffness_map(path: str | Path) -> list[tuple[float, float, float]]:
+    """Rows (x_mm, y_mm, stiffness_n_per_mm) of a measured map CSV."""
+    path = Path(path)
+    try:
+        with path.open(newline="") as handle:
+            reader = csv.DictReader(handle)
+            missing = {"x_mm", "y_mm", "stiffness_n_per_mm"} - set(reader.fieldnames or [])
+            if missing:
+                raise SceneError(f"{path}: missing column(s) {', '.join(sorted(missing))}")
+            rows = [_map_row(path, n + 2, row) for n, row in enumerate(reader)]
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read stiffness map: {exc.strerror}") from None
+    if len(rows) < 4:
+        raise SceneError(f"{path}: a stiffness map needs at least 4 points, found {len(rows)}")
+    return rows
+
+
+def _map_row(path: Path, line: int, row: dict) -> tuple[float, float, float]:
+    try:
+        x, y, k = (float(row[c]) for c in ("x_mm", "y_mm", "stiffness_n_per_mm"))
+    except (TypeError, ValueError):
+        raise SceneError(f"{path}:{line}: x_mm, y_mm and stiffness_n_per_mm must be numbers") from None
+    if not all(map(math.isfinite, (x, y, k))) or k <= 0:
+        raise SceneError(f"{path}:{line}: values must be finite and the stiffness positive")
+    return x, y, k
+
+
+def truth_lumps(scene: Scene) -> list[dict]:
+    """The scene's lumps as placed on the bench (after its rotation), in the tissue frame."""
+    from drivers.geometry import rotate_xy
+
+    return [
+        {
+            "center_mm": list(rotate_xy(*lump.center_mm, scene.placement.rotation_deg)),
+            "radius_mm": lump.radius_mm,
+            "depth_mm": lump.depth_mm,
+            "stiffness_n_per_mm": lump.stiffness_n_per_mm,
+        }
+        for lump in scene.lump
+    ]

@@ -1,0 +1,81 @@
+"""The simulated tissue: a felt stiffness field and the Hunt-Crossley contact law."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from drivers.sim.scene import Scene, load_stiffness_map
+
+MAP_GRID_MM = 0.5
+
+
+def lump_profile(r_mm: float, radius_mm: float, sharpness: float) -> float:
+    """1 over the centre, exactly 0.5 at the radius, smoothly down to 0 outside."""
+    return 1.0 / (1.0 + (r_mm / radius_mm) ** sharpness)
+
+
+def lump_sharpness(radius_mm: float, depth_mm: float) -> float:
+    # The edge is about (1 + depth) mm wide: a deeper lump is felt through more tissue, so it blurs.
+    return max(2.0, 4.0 * radius_mm / (1.0 + depth_mm))
+
+
+class StiffnessField:
+    """Felt stiffness k(x, y) in the tissue's own frame (N/mm^n)."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.background_n_per_mm = scene.tissue.stiffness_n_per_mm
+        self._lumps = [
+            (l.center_mm[0], l.center_mm[1], l.radius_mm, lump_sharpness(l.radius_mm, l.depth_mm), l.stiffness_n_per_mm)
+            for l in scene.lump
+        ]
+        self._map = _GridMap(load_stiffness_map(scene.tissue.map), scene.tissue.size_mm) if scene.tissue.map else None
+
+    def background_at(self, x_mm: float, y_mm: float) -> float:
+        return self._map.value(x_mm, y_mm) if self._map else self.background_n_per_mm
+
+    def k_at(self, x_mm: float, y_mm: float) -> float:
+        base = self.background_at(x_mm, y_mm)
+        strongest = 0.0
+        for cx, cy, radius, sharpness, k_lump in self._lumps:
+            contribution = (k_lump - base) * lump_profile(math.hypot(x_mm - cx, y_mm - cy), radius, sharpness)
+            if abs(contribution) > abs(strongest):
+                strongest = contribution
+        return base + strongest
+
+
+def hunt_crossley_n(k: float, exponent: float, damping: float, depth_mm: float, rate_mm_s: float) -> float:
+    """Contact force (N) for indentation depth_mm at rate_mm_s; the tissue pushes, never pulls."""
+    if depth_mm <= 0.0:
+        return 0.0
+    power = depth_mm if exponent == 1.0 else depth_mm**exponent
+    return max(0.0, k * power + damping * power * rate_mm_s)
+
+
+class _GridMap:
+    """A measured map resampled once onto a fine grid, then read bilinearly each tick."""
+
+    def __init__(self, rows: list[tuple[float, float, float]], size_mm: tuple[float, float]) -> None:
+        from scipy.interpolate import CloughTocher2DInterpolator, NearestNDInterpolator
+
+        points = np.array([(x, y) for x, y, _ in rows])
+        values = np.array([k for _, _, k in rows])
+        half_w, half_h = size_mm[0] / 2 + 5.0, size_mm[1] / 2 + 5.0
+        self._x0, self._y0 = -half_w, -half_h
+        xs = np.arange(-half_w, half_w + MAP_GRID_MM, MAP_GRID_MM)
+        ys = np.arange(-half_h, half_h + MAP_GRID_MM, MAP_GRID_MM)
+        gx, gy = np.meshgrid(xs, ys, indexing="ij")
+        smooth = CloughTocher2DInterpolator(points, values)(gx, gy)
+        nearest = NearestNDInterpolator(points, values)(gx, gy)  # outside the measured hull
+        grid = np.where(np.isfinite(smooth), smooth, nearest)
+        self._grid = np.maximum(grid, values.min() * 0.1).tolist()
+        self._nx, self._ny = len(xs), len(ys)
+
+    def value(self, x_mm: float, y_mm: float) -> float:
+        fx = min(max((x_mm - self._x0) / MAP_GRID_MM, 0.0), self._nx - 1.000001)
+        fy = min(max((y_mm - self._y0) / MAP_GRID_MM, 0.0), self._ny - 1.000001)
+        i, j = int(fx), int(fy)
+        ax, ay = fx - i, fy - j
+        g = self._grid
+        return (g[i][j] * (1 - ax) * (1 - ay) + g[i + 1][j] * ax * (1 - ay)
+                + g[i][j + 1] * (1 - ax) * ay + g[i + 1][j + 1] * ax * ay)

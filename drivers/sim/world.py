@@ -1,0 +1,81 @@
+"""The simulated bench: arm, tissue and sensor advancing together on one clock."""
+from __future__ import annotations
+
+import random
+
+from drivers.geometry import TissueFrame, rotate_xy
+from drivers.interfaces import STATUS_AMPLIFIERS_ON, STATUS_ESTOP, ForceSample
+from drivers.phantom import model
+from drivers.sim.arm import SimArm
+from drivers.sim.nano17 import SimNano17
+from drivers.sim.scene import Scene
+from drivers.sim.tissue import StiffnessField, hunt_crossley_n
+
+PHYSICS_STEP_S = 0.0005
+NO_FORCE = (0.0, 0.0, 0.0)
+
+
+class SimWorld:
+    """Advances lazily: whoever reads it first after the clock moved pays for the physics."""
+
+    def __init__(self, scene: Scene, clock, seed: int = 0) -> None:
+        self.scene = scene
+        self.clock = clock
+        self.frame = TissueFrame(tuple(v / 1000.0 for v in scene.placement.origin_mm))
+        self.q_aligned = model.inverse(self.frame.to_robot((0.0, 0.0, 0.0)))
+        self.field = StiffnessField(scene)
+        rng = random.Random(hash((scene.seed, seed)) & 0xFFFFFFFF)
+        self.sensor = SimNano17(scene.sensor.noise_n, scene.sensor.bias_n, rng)
+        self.arm = SimArm()
+        self.t_s = clock.now()
+        self.currents_a: model.Vec3 = NO_FORCE
+        self.amplifiers_on = False
+        self.estop = False
+        self.contact_force_robot: model.Vec3 = NO_FORCE
+        self._rotation_deg = scene.placement.rotation_deg
+        self._tissue = scene.tissue
+
+    # -- device side -------------------------------------------------------------------------
+    def advance_to(self, t_s: float) -> None:
+        while self.t_s + PHYSICS_STEP_S <= t_s + 1e-12:
+            self._step(PHYSICS_STEP_S)
+            self.t_s += PHYSICS_STEP_S
+
+    def status(self) -> int:
+        return (STATUS_AMPLIFIERS_ON if self.amplifiers_on else 0) | (STATUS_ESTOP if self.estop else 0)
+
+    def encoder_counts(self) -> tuple[int, int, int]:
+        return model.angles_to_counts(tuple(self.arm.q))  # type: ignore[arg-type]
+
+    def sensor_sample(self) -> ForceSample:
+        force = self.contact_force_robot
+        if self.scene.sensor.tilt:
+            force = model.base_to_tilt(tuple(self.arm.q), self.q_aligned, force)  # type: ignore[arg-type]
+        return self.sensor.sample(self.t_s, self.frame.vector_from_robot(force))
+
+    # -- physics -----------------------------------------------------------------------------
+    def felt_stiffness(self, x_mm: float, y_mm: float) -> float:
+        """Stiffness under a point of the tissue frame as placed (after the scene's rotation)."""
+        if self._rotation_deg:
+            x_mm, y_mm = rotate_xy(x_mm, y_mm, -self._rotation_deg)
+        return self.field.k_at(x_mm, y_mm)
+
+    def _step(self, dt: float) -> None:
+        q = tuple(self.arm.q)
+        force = self._contact_force(q)
+        self.contact_force_robot = force
+        tau_external = model.joint_torques(q, force) if force is not NO_FORCE else NO_FORCE
+        tau_motor = model.currents_to_torques(self.currents_a) if self.amplifiers_on else NO_FORCE
+        self.arm.step(dt, tau_motor, tau_external)
+
+    def _contact_force(self, q) -> model.Vec3:
+        tip = self.frame.from_robot(model.forward(q))
+        depth_mm = -1000.0 * tip[2]
+        if depth_mm <= 0.0:
+            return NO_FORCE
+        rate_mm_s = 0.0
+        if self._tissue.damping_n_s_per_mm:
+            rate_mm_s = -1000.0 * self.frame.vector_from_robot(model.tip_velocity(q, tuple(self.arm.qd)))[2]
+        k = self.felt_stiffness(1000.0 * tip[0], 1000.0 * tip[1])
+        normal_n = hunt_crossley_n(k, self._tissue.exponent, self._tissue.damping_n_s_per_mm, depth_mm, rate_mm_s)
+        return self.frame.vector_to_robot((0.0, 0.0, normal_n))

@@ -1,0 +1,5 @@
+import sys
+
+from palpd.cli import main
+
+sys.exit(main())

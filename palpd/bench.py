@@ -1,0 +1,64 @@
+"""Assembling a bench: robot, sensor, clock and servo loop from settings.
+
+A simulated bench builds the simulated world from a scene and opens the same
+driver interfaces through the backend registry, so everything above this
+module is the code that runs on the real robot.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import drivers
+from drivers.clock import RealClock, VirtualClock
+from drivers.geometry import TissueFrame
+from drivers.phantom import model
+from palpd.control.controller import CartesianPD
+from palpd.control.forces import ForceReader
+from palpd.control.safety import SafetySupervisor
+from palpd.control.servo import ServoLoop
+from palpd.errors import ConfigError
+
+
+@dataclass
+class Bench:
+    servo: ServoLoop
+    clock: object
+    frame: TissueFrame
+    tissue_size_mm: tuple[float, float]
+    world: object = None  # the simulated world, when there is one
+
+
+def simulated_settings(settings, scene):
+    """Settings as they must be for a simulated bench: the scene says where the tissue is."""
+    if not settings.robot.url.startswith("sim"):
+        raise ConfigError(f"robot.url is {settings.robot.url!r}, but a scene needs the simulated robot (sim://)")
+    return settings.updated(
+        tissue={"origin_mm": scene.placement.origin_mm, "size_mm": scene.tissue.size_mm},
+        sensor={"mount": "link2" if scene.sensor.tilt else "level"},
+    )
+
+
+def open_simulated_bench(settings, scene, seed: int = 0, realtime: bool = False) -> Bench:
+    settings = simulated_settings(settings, scene)
+    clock = RealClock() if realtime else VirtualClock()
+    world = drivers.load_backend("drivers.sim.world", "SimWorld")(scene, clock, seed=seed)
+    robot = drivers.open_robot(settings.robot.url, world=world)
+    sensor = drivers.open_sensor(settings.sensor.backend, world=world)
+    return _assemble(settings, robot, sensor, clock, world)
+
+
+def _assemble(settings, robot, sensor, clock, world=None) -> Bench:
+    frame = TissueFrame(tuple(v / 1000.0 for v in settings.tissue.origin_mm))
+    try:
+        q_aligned = model.inverse(frame.to_robot((0.0, 0.0, 0.0)))
+    except model.UnreachableError as exc:
+        raise ConfigError(f"tissue.origin_mm {settings.tissue.origin_mm}: {exc}") from None
+    forces = ForceReader(settings.palpation.force_axes, settings.sensor.mount == "link2", q_aligned)
+    control = settings.control
+    servo = ServoLoop(
+        robot, sensor, clock, frame,
+        CartesianPD(control.stiffness_n_per_mm, control.damping_n_s_per_mm, settings.robot.current_limit_a),
+        SafetySupervisor(settings.safety, settings.tissue.size_mm),
+        forces, settings.servo.rate_hz, control.velocity_filter_hz,
+    )
+    return Bench(servo, clock, frame, settings.tissue.size_mm, world)

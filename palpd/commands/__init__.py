@@ -1,0 +1,1 @@
+"""One module per palpd subcommand: argument handling and output, no domain logic."""

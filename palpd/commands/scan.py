@@ -1,0 +1,79 @@
+"""palpd scan: a whole simulated scan, with progress, report and map."""
+from __future__ import annotations
+
+import sys
+
+from drivers.sim.scene import load_scene, truth_lumps
+from palpd import metrics
+from palpd.bench import open_simulated_bench
+from palpd.config import load_settings
+from palpd.errors import EXIT_FAILURE, UsageError
+from palpd.files import write_json
+from palpd.scan import plan, run_scan
+
+
+def scan_command(args) -> int:
+    if args.max_palpations is not None and args.max_palpations < 1:
+        raise UsageError("--max-palpations must be at least 1")
+    settings = load_settings(args.config).updated(
+        scan={"strategy": args.strategy, "max_palpations": args.max_palpations, "seed": args.seed},
+        palpation={"depth_mm": args.depth_mm, "speed_mm_s": args.speed_mm_s},
+    )
+    scene = load_scene(args.scene)
+    s = settings.scan
+    points = plan(s.strategy, scene.tissue.size_mm, s.max_palpations, s.seed)
+    bench = open_simulated_bench(settings, scene, seed=s.seed, realtime=args.realtime)
+    _say(args, f"scan of scene {scene.name!r}: {s.strategy}, {len(points)} palpations, "
+               f"depth {settings.palpation.depth_mm} mm at {settings.palpation.speed_mm_s} mm/s")
+    report = {"scene": scene.name, **run_scan(bench, settings, points, _progress_printer(args))}
+    truth = truth_lumps(scene)
+    report["truth"] = {"lumps": truth}
+    report["metrics"] = metrics.compare(truth, report["lumps"])
+    _say(args, _summary(report), always=True)
+    if args.report:
+        write_json(args.report, report)
+        _say(args, f"report written to {args.report}")
+    if args.plot:
+        from palpd.plot import plot_scan
+
+        plot_scan(report, scene.tissue.size_mm, args.plot)
+        _say(args, f"map written to {args.plot}")
+    if report["faults"]:
+        fault = report["faults"][0]
+        print(f"palpd: scan stopped by a safety fault ({fault['code']}): {fault['message']}", file=sys.stderr)
+        return EXIT_FAILURE
+    return 0
+
+
+def _progress_printer(args):
+    def show(done: int, total: int, probe) -> None:
+        x, y = probe.record.xy_mm
+        k = "no fit: " + probe.rejected if probe.fit is None else f"k = {probe.stiffness_n_per_mm:.3f} N/mm"
+        _say(args, f"[{done:3d}/{total}] ({x:6.1f}, {y:6.1f}) mm  {k}")
+
+    return show
+
+
+def _summary(report: dict) -> str:
+    lines = [f"{report['palpations']} palpations in {report['robot_time_s']:.1f} s robot time "
+             f"({report['wall_time_s']:.1f} s wall), max force {report['max_contact_force_n']:.2f} N"]
+    if not report["lumps"]:
+        lines.append("no lump found")
+    for i, lump in enumerate(report["lumps"], 1):
+        (x, y), r = lump["center_mm"], lump["radius_mm"]
+        lines.append(f"lump {i}: centre ({x:.2f}, {y:.2f}) ± {lump['center_sd_mm']:.2f} mm, "
+                     f"radius {r:.2f} ± {lump['radius_sd_mm']:.2f} mm")
+    m = report["metrics"]
+    if m["lumps_true"] or m["false_lumps"]:
+        lines.append(f"vs truth: {m['lumps_found']}/{m['lumps_true']} found, {m['false_lumps']} false, "
+                     f"centre error {_mm(m['max_center_error_mm'])}, radius error {_mm(m['max_radius_error_mm'])}")
+    return "\n".join(lines)
+
+
+def _mm(value) -> str:
+    return "n/a" if value is None else f"{value:.2f} mm"
+
+
+def _say(args, text: str, always: bool = False) -> None:
+    if always or not args.quiet:
+        print(text, file=sys.stderr if not always else sys.stdout, flush=True)

@@ -1,0 +1,1 @@
+"""Robot control: the servo loop, the Cartesian controller, palpation and safety."""

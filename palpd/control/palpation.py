@@ -1,0 +1,113 @@
+"""One palpation as a state machine: above the point, approach, contact, indent, hold, retract.
+
+Contact is detected on the bias-compensated normal force with hysteresis. The
+indentation stops at the configured depth or force, whichever comes first.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from palpd.control.tasks import MoveTo
+
+Vec3 = tuple[float, float, float]
+NO_CONTACT_MARGIN_MM = 10.0  # how far below the nominal surface to look before giving up
+
+
+@dataclass
+class PalpationRecord:
+    """The force-displacement trace of one palpation (tissue frame)."""
+
+    target_xy_mm: tuple[float, float]
+    xy_mm: tuple[float, float] = (0.0, 0.0)
+    contact_z_mm: float | None = None
+    depth_mm: list[float] = field(default_factory=list)  # loading phase, below the contact point
+    force_n: list[float] = field(default_factory=list)
+    unload_depth_mm: list[float] = field(default_factory=list)
+    unload_force_n: list[float] = field(default_factory=list)
+    max_force_n: float = 0.0
+    stop_reason: str = ""
+    t_start_s: float = 0.0
+    t_end_s: float = 0.0
+
+
+class Palpation:
+    def __init__(self, xy_mm: tuple[float, float], settings) -> None:
+        self.s = settings
+        self.record = PalpationRecord(tuple(xy_mm))
+        self._above_point = (xy_mm[0], xy_mm[1], settings.clearance_mm)
+        self._phase = "above"
+        self._task = MoveTo(self._above_point, settings.travel_speed_mm_s, settings.accel_mm_s2)
+        self._target_z = settings.clearance_mm
+        self._last_t = None
+        self._hold_until = 0.0
+        self.done = False
+
+    def step(self, tick) -> Vec3:
+        dt = 0.0 if self._last_t is None else tick.t_s - self._last_t
+        self._last_t = tick.t_s
+        return getattr(self, "_" + self._phase)(tick, dt)
+
+    def _above(self, tick, dt) -> Vec3:
+        target = self._task.step(tick)
+        if self._task.done:
+            self._phase, self.record.t_start_s = "approach", tick.t_s
+        return target
+
+    def _approach(self, tick, dt) -> Vec3:
+        if tick.normal_force_n >= self.s.contact_on_n:
+            self.record.contact_z_mm = tick.tip_mm[2]
+            self._phase = "indent"
+            return self._indent(tick, 0.0)
+        self._target_z -= self.s.approach_speed_mm_s * dt
+        if self._target_z < -(self.s.depth_mm + NO_CONTACT_MARGIN_MM):
+            self._start_retract(tick, "no_contact")
+        return self._setpoint()
+
+    def _indent(self, tick, dt) -> Vec3:
+        depth = self._keep(tick)
+        if depth >= self.s.depth_mm or tick.normal_force_n >= self.s.max_force_n:
+            reason = "depth" if depth >= self.s.depth_mm else "force"
+            if self.s.hold_s > 0:
+                self._phase, self._hold_until, self.record.stop_reason = "hold", tick.t_s + self.s.hold_s, reason
+            else:
+                self._start_retract(tick, reason)
+            return self._setpoint()
+        self._target_z -= self.s.speed_mm_s * dt
+        return self._setpoint()
+
+    def _hold(self, tick, dt) -> Vec3:
+        if tick.t_s >= self._hold_until:
+            self._start_retract(tick, self.record.stop_reason)
+        return self._setpoint()
+
+    def _retract(self, tick, dt) -> Vec3:
+        if self.record.contact_z_mm is not None and tick.normal_force_n > self.s.contact_off_n:
+            self.record.unload_depth_mm.append(self.record.contact_z_mm - tick.tip_mm[2])
+            self.record.unload_force_n.append(tick.normal_force_n)
+        target = self._task.step(tick)
+        if self._task.done:
+            self.record.t_end_s = tick.t_s
+            self.done = True
+        return target
+
+    def _keep(self, tick) -> float:
+        depth = self.record.contact_z_mm - tick.tip_mm[2]
+        rec = self.record
+        rec.depth_mm.append(depth)
+        rec.force_n.append(tick.normal_force_n)
+        rec.max_force_n = max(rec.max_force_n, tick.normal_force_n)
+        n = len(rec.depth_mm)
+        rec.xy_mm = (  # running mean of where the tip actually pressed
+            rec.xy_mm[0] + (tick.tip_mm[0] - rec.xy_mm[0]) / n,
+            rec.xy_mm[1] + (tick.tip_mm[1] - rec.xy_mm[1]) / n,
+        )
+        return depth
+
+    def _start_retract(self, tick, reason: str) -> None:
+        self.record.stop_reason = reason
+        self._phase = "retract"
+        # From the setpoint, not the lagging tip, so the force releases smoothly.
+        self._task = MoveTo(self._above_point, self.s.approach_speed_mm_s, self.s.accel_mm_s2, start=self._setpoint())
+
+    def _setpoint(self) -> Vec3:
+        return (self._above_point[0], self._above_point[1], self._target_z)

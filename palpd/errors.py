@@ -1,0 +1,22 @@
+"""palpd's exceptions; each carries the exit status the command line uses for it."""
+from __future__ import annotations
+
+EXIT_FAILURE = 1
+EXIT_USAGE = 2
+EXIT_CONFIG = 78  # sysexits EX_CONFIG: systemd must not restart a daemon whose config is wrong
+
+
+class PalpdError(Exception):
+    exit_code = EXIT_FAILURE
+
+
+class ConfigError(PalpdError):
+    exit_code = EXIT_CONFIG
+
+
+class UsageError(PalpdError):
+    exit_code = EXIT_USAGE
+
+
+class ScanFault(PalpdError):
+    """The safety supervisor stopped the robot; the fault is latched until reset."""

@@ -1,0 +1,133 @@
+"""Lumps from stiffness points by the seed paper's §3.4 method.
+
+A stiffness threshold splits lump from tissue points (here learned from the
+data by a two-group split, with a test that the contrast is real so plain
+tissue never grows a lump); each connected group of lump points is a lump
+whose centre is the mean of its points and whose radius is the distance
+threshold a linear SVM finds between its points and the rest.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+from scipy.cluster.hierarchy import fcluster, linkage
+from scipy.spatial import cKDTree
+from sklearn.svm import SVC
+
+CONTRAST_P_VALUE = 1e-3
+BOUNDARY_VERTICES = 48
+
+
+@dataclass(frozen=True)
+class LumpEstimate:
+    center_mm: tuple[float, float]
+    radius_mm: float
+    center_sd_mm: float
+    radius_sd_mm: float
+    boundary_mm: list[list[float]]
+
+    def as_dict(self) -> dict:
+        return {
+            "center_mm": [round(v, 3) for v in self.center_mm],
+            "radius_mm": round(self.radius_mm, 3),
+            "center_sd_mm": round(self.center_sd_mm, 3),
+            "radius_sd_mm": round(self.radius_sd_mm, 3),
+            "boundary_mm": [[round(x, 3), round(y, 3)] for x, y in self.boundary_mm],
+        }
+
+
+def stiffness_threshold(k: np.ndarray, min_contrast: float) -> float | None:
+    """The stiffness splitting lump from tissue, or None when there is no real contrast."""
+    k = np.sort(np.asarray(k, dtype=float))
+    if k.size < 3:
+        return None
+    split = _best_two_group_split(k)
+    low, high = k[:split], k[split:]
+    if high.mean() < (1.0 + min_contrast) * low.mean() or not _groups_differ(low, high):
+        return None
+    return 0.5 * (low.max() + high.min())
+
+
+def estimate_lumps(xy_mm, k, min_contrast: float = 0.3) -> list[LumpEstimate]:
+    xy = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+    k = np.asarray(k, dtype=float)
+    threshold = stiffness_threshold(k, min_contrast)
+    if threshold is None:
+        return []
+    is_lump = k > threshold
+    spacing = _typical_spacing(xy)
+    groups = _connected_groups(xy[is_lump], 1.6 * spacing)
+    centres = np.array([g.mean(axis=0) for g in groups])
+    owner = np.argmin(np.linalg.norm(xy[:, None, :] - centres[None, :, :], axis=2), axis=1)
+    return [
+        _one_lump(xy[owner == i], is_lump[owner == i], group, spacing) for i, group in enumerate(groups)
+    ]
+
+
+def circle_polygon(center: tuple[float, float], radius: float, vertices: int = BOUNDARY_VERTICES) -> list[list[float]]:
+    """A closed polygon (first vertex repeated last) approximating a circle."""
+    angles = np.linspace(0.0, 2.0 * math.pi, vertices + 1)
+    return [[center[0] + radius * math.cos(a), center[1] + radius * math.sin(a)] for a in angles]
+
+
+def _one_lump(xy: np.ndarray, is_lump: np.ndarray, group: np.ndarray, spacing: float) -> LumpEstimate:
+    centre = group.mean(axis=0)
+    distance = np.linalg.norm(xy - centre, axis=1)
+    inside, outside = distance[is_lump], distance[~is_lump]
+    if outside.size == 0:  # every nearby probe is stiff: the lump reaches past what was probed
+        radius, gap = float(inside.max() + spacing / 2), spacing
+    else:
+        radius = _svm_radius(distance, is_lump, spacing)
+        gap = max(float(outside.min() - inside.max()), 0.0) or spacing / 2
+    centre_sd = max(float(group.std(axis=0).mean() / math.sqrt(len(group))), spacing / math.sqrt(12 * len(group)))
+    return LumpEstimate(
+        (float(centre[0]), float(centre[1])), radius, centre_sd, gap / math.sqrt(12.0), circle_polygon(tuple(centre), radius)
+    )
+
+
+def _svm_radius(distance: np.ndarray, is_lump: np.ndarray, spacing: float) -> float:
+    """The distance at which a linear SVM separates lump points from the rest (paper §3.4)."""
+    # In units of the probe spacing the margin is order one, so a hard-ish C gives the max-margin midpoint.
+    scale = spacing
+    svm = SVC(kernel="linear", C=1e4).fit((distance / scale)[:, None], is_lump.astype(int))
+    return float(-svm.intercept_[0] / svm.coef_[0, 0] * scale)
+
+
+def _best_two_group_split(sorted_k: np.ndarray) -> int:
+    """Index splitting sorted values into two groups of least total within-group variance."""
+    n = sorted_k.size
+    cumsum, cumsq = np.cumsum(sorted_k), np.cumsum(sorted_k**2)
+    best, best_cost = 1, math.inf
+    for i in range(1, n):
+        low_var = cumsq[i - 1] - cumsum[i - 1] ** 2 / i
+        high_sum, high_sq = cumsum[-1] - cumsum[i - 1], cumsq[-1] - cumsq[i - 1]
+        cost = low_var + high_sq - high_sum**2 / (n - i)
+        if cost < best_cost:
+            best, best_cost = i, cost
+    return best
+
+
+def _groups_differ(low: np.ndarray, high: np.ndarray) -> bool:
+    if high.size >= 2 and low.size >= 2:
+        if np.ptp(low) == 0 and np.ptp(high) == 0:
+            return bool(high[0] != low[0])
+        return bool(stats.ttest_ind(high, low, equal_var=False).pvalue < CONTRAST_P_VALUE)
+    spread = low.std(ddof=1) if low.size >= 2 else 0.0
+    return bool(high.min() - low.mean() > 6.0 * spread) if spread > 0 else False
+
+
+def _typical_spacing(xy: np.ndarray) -> float:
+    if len(xy) < 2:
+        return 1.0
+    distances, _ = cKDTree(xy).query(xy, k=2)
+    return float(np.median(distances[:, 1])) or 1.0
+
+
+def _connected_groups(points: np.ndarray, link_mm: float) -> list[np.ndarray]:
+    if len(points) == 1:
+        return [points]
+    labels = fcluster(linkage(points, method="single"), t=link_mm, criterion="distance")
+    return [points[labels == label] for label in np.unique(labels)]

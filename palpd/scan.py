@@ -1,0 +1,100 @@
+"""A whole autonomous scan: tare, palpate each planned point, fit, estimate, report."""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+from palpd import strategies
+from palpd.bench import Bench
+from palpd.control.palpation import Palpation, PalpationRecord
+from palpd.control.tasks import HoldAndCollect, MoveTo
+from palpd.errors import ScanFault, UsageError
+from palpd.estimate import estimate_lumps
+from palpd.stiffness import FitRejected, LinearFit, fit_linear
+
+PARK_HEIGHT_MM = 20.0
+
+
+@dataclass
+class Probe:
+    record: PalpationRecord
+    fit: LinearFit | None
+    rejected: str | None = None
+
+    @property
+    def stiffness_n_per_mm(self) -> float | None:
+        return self.fit.stiffness_n_per_mm if self.fit else None
+
+    def as_dict(self) -> dict:
+        out = {"xy_mm": [round(v, 3) for v in self.record.xy_mm],
+               "stiffness_n_per_mm": None if self.fit is None else round(self.fit.stiffness_n_per_mm, 5)}
+        if self.fit is not None:
+            out["stiffness_se_n_per_mm"] = round(self.fit.stiffness_se_n_per_mm, 6)
+            out["max_force_n"] = round(self.record.max_force_n, 4)
+        else:
+            out["rejected"] = self.rejected
+        return out
+
+
+def plan(strategy: str, size_mm, max_palpations: int, seed: int) -> list[tuple[float, float]]:
+    if strategy == "raster":
+        return strategies.raster_points(size_mm, max_palpations)
+    if strategy == "random":
+        return strategies.random_points(size_mm, max_palpations, seed)
+    if strategy == "active":
+        raise UsageError("--strategy active needs the online learner, which this version does not have yet; "
+                         "use raster or random")
+    raise UsageError(f"unknown strategy {strategy!r}; choose from {', '.join(strategies.STRATEGIES)}")
+
+
+def palpate(bench: Bench, settings, xy_mm) -> Probe:
+    """One palpation through the servo loop, then its stiffness fit."""
+    palpation = Palpation(xy_mm, settings.palpation)
+    bench.servo.run(palpation)
+    record = palpation.record
+    try:
+        return Probe(record, fit_linear(record.depth_mm, record.force_n))
+    except FitRejected as exc:
+        reason = "no contact found" if record.stop_reason == "no_contact" else str(exc)
+        return Probe(record, None, reason)
+
+
+def run_scan(bench: Bench, settings, points, progress: Callable[[int, int, Probe], None] | None = None) -> dict:
+    """Run the plan; returns the report body (without truth). A fault ends the scan early, recorded."""
+    p = settings.palpation
+    servo = bench.servo
+    wall_start, robot_start = time.monotonic(), bench.clock.now()
+    probes: list[Probe] = []
+    faults = []
+    servo.start()
+    try:
+        first = (points[0][0], points[0][1], p.clearance_mm) if points else (0.0, 0.0, p.clearance_mm)
+        servo.run(MoveTo(first, p.travel_speed_mm_s, p.accel_mm_s2))
+        tare = HoldAndCollect(p.tare_samples, where=first)
+        servo.run(tare)
+        servo.forces.tare(tare.samples)
+        for index, xy in enumerate(points):
+            probes.append(palpate(bench, settings, xy))
+            if progress:
+                progress(index + 1, len(points), probes[-1])
+        park = servo.last_tick.tip_mm
+        servo.run(MoveTo((park[0], park[1], PARK_HEIGHT_MM), p.travel_speed_mm_s, p.accel_mm_s2))
+    except ScanFault:
+        faults.append(servo.fault.as_dict())
+    finally:
+        servo.stop()
+    good = [pr for pr in probes if pr.fit is not None]
+    lumps = estimate_lumps([pr.record.xy_mm for pr in good], [pr.stiffness_n_per_mm for pr in good],
+                           settings.scan.min_contrast) if good else []
+    return {
+        "strategy": settings.scan.strategy,
+        "seed": settings.scan.seed,
+        "palpations": len(probes),
+        "robot_time_s": round(bench.clock.now() - robot_start, 3),
+        "wall_time_s": round(time.monotonic() - wall_start, 3),
+        "max_contact_force_n": round(servo.max_contact_force_n, 4),
+        "faults": faults,
+        "lumps": [lump.as_dict() for lump in lumps],
+        "probes": [pr.as_dict() for pr in probes],
+    }

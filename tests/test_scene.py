@@ -1,0 +1,81 @@
+import pytest
+
+from conftest import ROOT, SCENES, assert_one_line_error
+from drivers.sim.scene import SceneError, load_scene, truth_lumps
+from drivers.sim.tissue import StiffnessField
+
+
+def test_shipped_scenes_load():
+    paper = load_scene(SCENES / "paper.toml")
+    assert paper.name == "paper" and len(paper.lump) == 1 and paper.sensor.tilt
+    assert len(load_scene(SCENES / "two-lumps.toml").lump) == 2
+    assert load_scene(SCENES / "no-lump.toml").lump == []
+
+
+def scene_file(tmp_path, text):
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    return path
+
+
+LUMP = "[[lump]]\ncenter_mm = [0, 0]\nradius_mm = 5\nstiffness_n_per_mm = 0.5\n"
+
+
+@pytest.mark.parametrize("text, message", [
+    ('seed = 1\n', "name: required key is missing"),
+    ('name = "x"\n[tissue]\ncolour = "red"\n', "tissue.colour: unknown key"),
+    ('name = "x"\n' + LUMP + "shape = 'oval'\n", "lump.0.shape: unknown key"),
+    ('name = "x"\n[tissue]\nstiffness_n_per_mm = -1\n', "tissue.stiffness_n_per_mm: Input should be greater than 0"),
+    ('name = "x"\n[[lump]]\ncenter_mm = [100, 0]\nradius_mm = 5\nstiffness_n_per_mm = 0.5\n', "wholly outside"),
+    ('name = "x"\n[sensor]\ntilt = "sometimes"\n', "sensor.tilt"),
+])
+def test_invalid_scenes_are_rejected_with_one_clear_line(tmp_path, text, message):
+    path = scene_file(tmp_path, text)
+    with pytest.raises(SceneError) as error:
+        load_scene(path)
+    assert str(error.value).startswith(f"{path}: ")
+    assert message in str(error.value)
+    assert "\n" not in str(error.value)
+
+
+def test_missing_and_broken_scene_files(tmp_path):
+    with pytest.raises(SceneError, match="scene file not found"):
+        load_scene(tmp_path / "none.toml")
+    with pytest.raises(SceneError, match="not valid TOML"):
+        load_scene(scene_file(tmp_path, "name = \n"))
+
+
+def test_measured_map_is_interpolated_and_lumps_sit_on_top(tmp_path):
+    rows = ["x_mm,y_mm,stiffness_n_per_mm"]
+    for x in range(-30, 31, 10):
+        for y in range(-30, 31, 10):
+            rows.append(f"{x},{y},{0.1 + 0.002 * (x + 30)}")  # a gentle gradient along x
+    (tmp_path / "measured.csv").write_text("\n".join(rows) + "\n")
+    path = scene_file(tmp_path, 'name = "m"\n[tissue]\nmap = "measured.csv"\n' + LUMP.replace("[0, 0]", "[20, 20]"))
+    field = StiffnessField(load_scene(path))
+    assert field.k_at(-30, 0) == pytest.approx(0.1, abs=1e-3)
+    assert field.k_at(0, -10) == pytest.approx(0.16, abs=1e-3)
+    assert field.k_at(5, -10) == pytest.approx(0.17, abs=1e-3)  # between measured points
+    assert field.k_at(20, 20) == pytest.approx(0.5, rel=1e-3)  # the lump on top of the map
+
+
+def test_bad_map_names_file_and_line(tmp_path):
+    (tmp_path / "m.csv").write_text("x_mm,y_mm,stiffness_n_per_mm\n0,0,0.1\n1,0,abc\n")
+    with pytest.raises(SceneError, match=r"m\.csv:3: "):
+        load_scene(scene_file(tmp_path, 'name = "m"\n[tissue]\nmap = "m.csv"\n'))
+    with pytest.raises(SceneError, match="cannot read stiffness map"):
+        load_scene(scene_file(tmp_path, 'name = "m"\n[tissue]\nmap = "absent.csv"\n'))
+
+
+def test_truth_follows_the_tissue_rotation(tmp_path):
+    path = scene_file(tmp_path, 'name = "r"\n[placement]\nrotation_deg = 90\n' + LUMP.replace("[0, 0]", "[10, 0]"))
+    (truth,) = truth_lumps(load_scene(path))
+    assert truth["center_mm"] == pytest.approx([0.0, 10.0], abs=1e-9)
+
+
+def test_cli_reports_a_bad_scene_in_one_line(tmp_path, run_cli):
+    path = scene_file(tmp_path, 'name = "x"\n[[lump]]\nradius_mm = 3\nstiffness_n_per_mm = 1\n')
+    result = run_cli("scan", "--scene", path)
+    assert_one_line_error(result, str(path), "lump.0.center_mm")
+    result = run_cli("scan", "--scene", tmp_path / "absent.toml")
+    assert_one_line_error(result, "absent.toml", "not found")
