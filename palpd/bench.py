@@ -58,7 +58,12 @@ def _assemble(settings, robot, sensor, clock, world=None) -> Bench:
     servo = ServoLoop(
         robot, sensor, clock, frame,
         CartesianPD(control.stiffness_n_per_mm, control.damping_n_s_per_mm, settings.robot.current_limit_a),
-        SafetySupervisor(settings.safety, settings.tissue.size_mm),
+        SafetySupervisor(settings.safety, settings.tissue.size_mm, _home_mm(frame)),
         forces, settings.servo.rate_hz, control.velocity_filter_hz,
     )
     return Bench(servo, clock, frame, settings.tissue.size_mm, world)
+
+
+def _home_mm(frame: TissueFrame) -> tuple[float, float, float]:
+    """Where the tip rests at home (all joints zero), in the tissue frame."""
+    return tuple(1000.0 * v for v in frame.from_robot(model.forward((0.0, 0.0, 0.0))))  # type: ignore[return-value]

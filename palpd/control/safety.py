@@ -28,12 +28,16 @@ class Fault:
 
 
 class SafetySupervisor:
-    def __init__(self, settings, tissue_size_mm: tuple[float, float]) -> None:
+    def __init__(self, settings, tissue_size_mm: tuple[float, float], home_mm=(0.0, 0.0, 0.0)) -> None:
+        """The workspace box spans the tissue plus a margin, stretched to take in the arm's home."""
         self.force_cap_n = settings.force_cap_n
         self.max_speed = settings.max_tip_speed_mm_s
-        self.half_x = tissue_size_mm[0] / 2 + settings.workspace_margin_mm
-        self.half_y = tissue_size_mm[1] / 2 + settings.workspace_margin_mm
-        self.z_low, self.z_high = settings.workspace_z_mm
+        margin = settings.workspace_margin_mm
+        half_x, half_y = tissue_size_mm[0] / 2 + margin, tissue_size_mm[1] / 2 + margin
+        self.x_range = (min(-half_x, home_mm[0] - margin), max(half_x, home_mm[0] + margin))
+        self.y_range = (min(-half_y, home_mm[1] - margin), max(half_y, home_mm[1] + margin))
+        z_low, z_high = settings.workspace_z_mm
+        self.z_range = (z_low, max(z_high, home_mm[2] + margin))
 
     def check(self, tick) -> Fault | None:
         """The first reason to stop at this tick, or None."""
@@ -49,9 +53,13 @@ class SafetySupervisor:
         if force > self.force_cap_n:
             return Fault("force_cap", f"contact force {force:.2f} N above the cap of {self.force_cap_n} N", tick.t_s)
         x, y, z = tick.tip_mm
-        if abs(x) > self.half_x or abs(y) > self.half_y or not self.z_low <= z <= self.z_high:
+        if not (_within(x, self.x_range) and _within(y, self.y_range) and _within(z, self.z_range)):
             return Fault("workspace", f"tip at ({x:.1f}, {y:.1f}, {z:.1f}) mm left the workspace box", tick.t_s)
         speed = math.sqrt(sum(v * v for v in tick.velocity_mm_s))
         if speed > self.max_speed:
             return Fault("speed", f"tip speed {speed:.0f} mm/s above the limit of {self.max_speed} mm/s", tick.t_s)
         return None
+
+
+def _within(value: float, bounds: tuple[float, float]) -> bool:
+    return bounds[0] <= value <= bounds[1]

@@ -1,0 +1,59 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from palpd.estimate import estimate_lumps, stiffness_threshold
+from palpd.stiffness import FitRejected, fit_linear
+
+
+def grid(spacing=5.0):
+    axis = np.arange(-30, 30.1, spacing)
+    return np.array([(x, y) for x in axis for y in axis])
+
+
+def disc_field(xy, centre, radius, k_in=0.8, k_out=0.12, noise=0.0, seed=0):
+    rng = np.random.default_rng(seed)
+    inside = np.hypot(*(xy - centre).T) < radius
+    return np.where(inside, k_in, k_out) + rng.normal(0, noise, len(xy))
+
+
+def test_one_lump_centre_and_radius():
+    xy = grid()
+    (lump,) = estimate_lumps(xy, disc_field(xy, (2.0, -3.0), 9.0, noise=0.005))
+    assert np.hypot(*(np.array(lump.center_mm) - (2, -3))) < 1.5
+    assert lump.radius_mm == pytest.approx(9.0, abs=2.5)
+    assert lump.center_sd_mm > 0 and lump.radius_sd_mm > 0
+
+
+def test_two_separate_lumps_are_two():
+    xy = grid()
+    k = np.maximum(disc_field(xy, (-15, -15), 7), disc_field(xy, (15, 15), 7, k_in=0.5))
+    lumps = estimate_lumps(xy, k)
+    assert sorted(round(l.center_mm[0]) for l in lumps) == [-15, 15]
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(0.01, 2.0), st.floats(0.0, 0.05), st.integers(0, 10_000))
+def test_plain_tissue_never_invents_a_lump(k, relative_noise, seed):
+    xy = grid()
+    stiffness = k * (1 + np.random.default_rng(seed).normal(0, relative_noise, len(xy)))
+    assert estimate_lumps(xy, stiffness) == []
+
+
+def test_threshold_needs_real_contrast():
+    assert stiffness_threshold(np.array([0.1, 0.1, 0.1, 0.1]), 0.3) is None
+    assert stiffness_threshold(np.array([0.1, 0.1, 0.1, 0.11]), 0.3) is None
+    assert stiffness_threshold(np.array([0.1, 0.1, 0.1, 0.5, 0.5]), 0.3) == pytest.approx(0.3)
+
+
+def test_linear_fit_recovers_slope_and_rejects_what_it_cannot_fit():
+    d = np.linspace(0, 4, 200)
+    fit = fit_linear(d, 0.3 * d + 0.05)
+    assert fit.stiffness_n_per_mm == pytest.approx(0.3) and fit.samples == 200
+    with pytest.raises(FitRejected, match="too few samples"):
+        fit_linear([1.0, 2.0], [0.1, 0.2])
+    with pytest.raises(FitRejected, match="range"):
+        fit_linear([1.0] * 10, np.linspace(0, 1, 10))
+    with pytest.raises(FitRejected, match="does not rise"):
+        fit_linear(d, -0.3 * d)
+    assert fit_linear([0, 1, np.nan, 2, 3], [0, 1, 5, 2, np.inf]).samples == 3

@@ -1,0 +1,125 @@
+import json
+import math
+
+import numpy as np
+import pytest
+
+from conftest import SCENES, assert_one_line_error
+from drivers.sim.scene import Scene, load_scene
+from palpd.bench import open_simulated_bench
+from palpd.config import Settings
+from palpd.control.tasks import MoveTo
+from palpd.errors import ScanFault
+from palpd.scan import palpate, plan, run_scan
+
+
+def uniform_scene(k=0.12, tilt=False, **sensor):
+    return Scene(name="u", tissue={"stiffness_n_per_mm": k}, sensor={"tilt": tilt, **sensor})
+
+
+def test_raster_scan_of_the_paper_scene_finds_the_lump_within_2_5_mm():
+    scene = load_scene(SCENES / "paper.toml")
+    settings = Settings()
+    bench = open_simulated_bench(settings, scene)
+    report = run_scan(bench, settings, plan("raster", scene.tissue.size_mm, 81, 0))
+    assert report["faults"] == [] and report["palpations"] == 81
+    (lump,) = report["lumps"]
+    truth = scene.lump[0]
+    assert math.dist(lump["center_mm"], truth.center_mm) <= 2.5
+    assert abs(lump["radius_mm"] - truth.radius_mm) <= 2.5
+    assert report["max_contact_force_n"] <= settings.palpation.max_force_n + 0.3
+    assert lump["boundary_mm"][0] == lump["boundary_mm"][-1]  # a closed polygon
+
+
+@pytest.mark.parametrize("k", [0.05, 0.12, 0.6])
+def test_palpation_recovers_the_tissue_stiffness(k):
+    settings = Settings()
+    bench = open_simulated_bench(settings, uniform_scene(k, tilt=True))
+    bench.servo.start()
+    bench.servo.run(MoveTo((5.0, -5.0, 4.0), 80.0, 2000.0))
+    probe = palpate(bench, settings, (5.0, -5.0))
+    assert probe.fit.stiffness_n_per_mm == pytest.approx(k, rel=0.03)
+    assert probe.record.stop_reason == ("depth" if k * 4.5 < settings.palpation.max_force_n else "force")
+    assert probe.record.xy_mm == pytest.approx((5.0, -5.0), abs=0.2)
+
+
+def test_plain_tissue_grows_no_lump():
+    scene = load_scene(SCENES / "no-lump.toml")
+    settings = Settings()
+    report = run_scan(open_simulated_bench(settings, scene), settings, plan("random", scene.tissue.size_mm, 30, 4))
+    assert report["lumps"] == [] and report["palpations"] == 30
+
+
+def test_tilted_sensor_read_on_z_only_underestimates_at_the_edge():
+    """The seed paper's error source: far from where it was aligned, the tilted z axis reads less."""
+    scene = uniform_scene(0.3, tilt=True, noise_n=0.0).model_copy(
+        update={"placement": Scene(name="p", placement={"origin_mm": (0, -60, 60)}).placement})
+    found = {}
+    for axes in ("tissue", "sensor_z"):
+        settings = Settings().updated(palpation={"force_axes": axes})
+        bench = open_simulated_bench(settings, scene)
+        bench.servo.start()
+        bench.servo.run(MoveTo((0.0, -30.0, 4.0), 80.0, 2000.0))
+        found[axes] = palpate(bench, settings, (0.0, -30.0)).fit.stiffness_n_per_mm
+    assert found["tissue"] == pytest.approx(0.3, rel=0.02)
+    assert found["sensor_z"] < found["tissue"] * 0.995
+
+
+def test_pushing_into_stiff_tissue_trips_the_force_cap_and_cuts_the_motors():
+    settings = Settings().updated(safety={"force_cap_n": 5.0})
+    bench = open_simulated_bench(settings, uniform_scene(2.0))
+    bench.servo.start()
+    bench.servo.run(MoveTo((0.0, 0.0, 2.0), 80.0, 2000.0))
+    with pytest.raises(ScanFault, match="force_cap"):
+        bench.servo.run(MoveTo((0.0, 0.0, -15.0), 20.0, 2000.0))
+    assert bench.world.amplifiers_on is False and bench.world.currents_a == (0.0, 0.0, 0.0)
+    assert bench.servo.fault.code == "force_cap"
+    with pytest.raises(ScanFault, match="reset first"):  # latched
+        bench.servo.run(MoveTo((0.0, 0.0, 5.0), 20.0, 2000.0))
+
+
+def test_simulated_scans_are_deterministic():
+    scene = load_scene(SCENES / "paper.toml")
+    settings = Settings()
+    reports = [run_scan(open_simulated_bench(settings, scene, seed=7), settings, plan("random", (60, 60), 6, 7))
+               for _ in range(2)]
+    assert reports[0]["probes"] == reports[1]["probes"]
+
+
+def test_raster_and_random_plans():
+    grid = plan("raster", (60, 40), 50, 0)
+    assert len(grid) == 49
+    assert min(p[0] for p in grid) == -30 and max(p[1] for p in grid) == 20
+    assert all(math.dist(a, b) < 11 for a, b in zip(grid, grid[1:]))  # serpentine: neighbours only
+    points = np.array(plan("random", (60, 40), 100, 3))
+    assert (np.abs(points) <= [30, 20]).all()
+    assert plan("random", (60, 40), 5, 3) == plan("random", (60, 40), 5, 3) != plan("random", (60, 40), 5, 4)
+
+
+def test_cli_scan_writes_report_and_plot(tmp_path, run_cli):
+    result = run_cli("scan", "--scene", SCENES / "paper.toml", "--strategy", "raster", "--max-palpations", "25",
+                     "--report", "r.json", "--plot", "r.png")
+    assert result.returncode == 0, result.stderr
+    assert "[ 25/25]" in result.stderr  # progress
+    assert "lump 1: centre" in result.stdout
+    report = json.loads((tmp_path / "r.json").read_text())
+    for key in ("scene", "strategy", "seed", "palpations", "robot_time_s", "wall_time_s", "max_contact_force_n",
+                "faults", "lumps", "probes", "truth", "metrics"):
+        assert key in report
+    assert report["scene"] == "paper" and report["palpations"] == 25 and len(report["probes"]) == 25
+    assert set(report["lumps"][0]) >= {"center_mm", "radius_mm", "center_sd_mm", "radius_sd_mm", "boundary_mm"}
+    png = (tmp_path / "r.png").read_bytes()
+    assert png.startswith(b"\x89PNG") and len(png) > 20_000
+
+
+def test_cli_active_strategy_is_refused_clearly_for_now(run_cli):
+    result = run_cli("scan", "--scene", SCENES / "paper.toml", "--strategy", "active")
+    assert_one_line_error(result, "--strategy active", "raster or random")
+
+
+def test_cli_unwritable_report(tmp_path, run_cli):
+    (tmp_path / "blocker").write_text("")
+    result = run_cli("scan", "--scene", SCENES / "no-lump.toml", "--max-palpations", "1", "--quiet",
+                     "--report", tmp_path / "blocker" / "r.json")
+    assert result.returncode != 0 and "Traceback" not in result.stderr
+    assert "r.json: cannot write" in result.stderr
