@@ -37,11 +37,33 @@ class Probe:
         return out
 
 
-def plan(strategy: str, size_mm, max_palpations: int, seed: int) -> list[tuple[float, float]]:
+class FixedPlan:
+    """A planner whose points are all decided before the first palpation (raster, random).
+
+    Planners answer next_probe() with a point or None when the scan should stop,
+    and learn from observe(probe); an adaptive planner (the learner) does the same.
+    """
+
+    def __init__(self, points: list[tuple[float, float]]) -> None:
+        self.points = list(points)
+        self.expected_total = len(self.points)
+        self._next = 0
+
+    def next_probe(self) -> tuple[float, float] | None:
+        if self._next >= len(self.points):
+            return None
+        self._next += 1
+        return self.points[self._next - 1]
+
+    def observe(self, probe: "Probe") -> None:
+        """A fixed plan does not change with what it finds."""
+
+
+def plan(strategy: str, size_mm, max_palpations: int, seed: int) -> FixedPlan:
     if strategy == "raster":
-        return strategies.raster_points(size_mm, max_palpations)
+        return FixedPlan(strategies.raster_points(size_mm, max_palpations))
     if strategy == "random":
-        return strategies.random_points(size_mm, max_palpations, seed)
+        return FixedPlan(strategies.random_points(size_mm, max_palpations, seed))
     if strategy == "active":
         raise UsageError("--strategy active needs the online learner, which this version does not have yet; "
                          "use raster or random")
@@ -60,8 +82,11 @@ def palpate(bench: Bench, settings, xy_mm) -> Probe:
         return Probe(record, None, reason)
 
 
-def run_scan(bench: Bench, settings, points, progress: Callable[[int, int, Probe], None] | None = None) -> dict:
-    """Run the plan; returns the report body (without truth). A fault ends the scan early, recorded."""
+def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Probe], None] | None = None) -> dict:
+    """Palpate where the planner says until it says stop; returns the report body (without truth).
+
+    A fault ends the scan early and is recorded in the report.
+    """
     p = settings.palpation
     servo = bench.servo
     wall_start, robot_start = time.monotonic(), bench.clock.now()
@@ -69,15 +94,18 @@ def run_scan(bench: Bench, settings, points, progress: Callable[[int, int, Probe
     faults = []
     servo.start()
     try:
-        first = (points[0][0], points[0][1], p.clearance_mm) if points else (0.0, 0.0, p.clearance_mm)
+        xy = planner.next_probe()
+        first = (xy[0], xy[1], p.clearance_mm) if xy is not None else (0.0, 0.0, p.clearance_mm)
         servo.run(MoveTo(first, p.travel_speed_mm_s, p.accel_mm_s2))
         tare = HoldAndCollect(p.tare_samples, where=first)
         servo.run(tare)
         servo.forces.tare(tare.samples)
-        for index, xy in enumerate(points):
+        while xy is not None:
             probes.append(palpate(bench, settings, xy))
+            planner.observe(probes[-1])
             if progress:
-                progress(index + 1, len(points), probes[-1])
+                progress(len(probes), max(planner.expected_total, len(probes)), probes[-1])
+            xy = planner.next_probe()
         park = servo.last_tick.tip_mm
         servo.run(MoveTo((park[0], park[1], PARK_HEIGHT_MM), p.travel_speed_mm_s, p.accel_mm_s2))
     except ScanFault:

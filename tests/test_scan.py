@@ -87,13 +87,14 @@ def test_simulated_scans_are_deterministic():
 
 
 def test_raster_and_random_plans():
-    grid = plan("raster", (60, 40), 50, 0)
+    grid = plan("raster", (60, 40), 50, 0).points
     assert len(grid) == 49
     assert min(p[0] for p in grid) == -30 and max(p[1] for p in grid) == 20
     assert all(math.dist(a, b) < 11 for a, b in zip(grid, grid[1:]))  # serpentine: neighbours only
-    points = np.array(plan("random", (60, 40), 100, 3))
+    points = np.array(plan("random", (60, 40), 100, 3).points)
     assert (np.abs(points) <= [30, 20]).all()
-    assert plan("random", (60, 40), 5, 3) == plan("random", (60, 40), 5, 3) != plan("random", (60, 40), 5, 4)
+    assert plan("random", (60, 40), 5, 3).points == plan("random", (60, 40), 5, 3).points
+    assert plan("random", (60, 40), 5, 3).points != plan("random", (60, 40), 5, 4).points
 
 
 def test_cli_scan_writes_report_and_plot(tmp_path, run_cli):

@@ -12,7 +12,24 @@ from palpd.files import write_json
 from palpd.scan import plan, run_scan
 
 
-def scan_command(args) -> int:
+def add_parser(subparsers):
+    scan = subparsers.add_parser("scan", help="palpate a scene end to end and estimate its lumps")
+    scan.add_argument("--scene", required=True, help="scene file (TOML)")
+    scan.add_argument("--strategy", choices=["active", "raster", "random"], help="where to palpate (default raster)")
+    scan.add_argument("--max-palpations", type=int, metavar="N")
+    scan.add_argument("--confidence", type=float, metavar="P", help="stopping confidence (active strategy)")
+    scan.add_argument("--seed", type=int, metavar="N")
+    scan.add_argument("--depth-mm", type=float, metavar="D", help="indentation depth")
+    scan.add_argument("--speed-mm-s", type=float, metavar="V", help="indentation speed")
+    scan.add_argument("--report", metavar="FILE.json")
+    scan.add_argument("--plot", metavar="FILE.png")
+    scan.add_argument("--realtime", action="store_true", help="run on the wall clock instead of simulated time")
+    scan.add_argument("--config", metavar="FILE", help="settings (TOML); default: built-in, as config/palpd.toml")
+    scan.add_argument("--quiet", action="store_true", help="no progress lines")
+    return scan
+
+
+def run(args) -> int:
     if args.max_palpations is not None and args.max_palpations < 1:
         raise UsageError("--max-palpations must be at least 1")
     settings = load_settings(args.config).updated(
@@ -21,11 +38,11 @@ def scan_command(args) -> int:
     )
     scene = load_scene(args.scene)
     s = settings.scan
-    points = plan(s.strategy, scene.tissue.size_mm, s.max_palpations, s.seed)
+    planner = plan(s.strategy, scene.tissue.size_mm, s.max_palpations, s.seed)
     bench = open_simulated_bench(settings, scene, seed=s.seed, realtime=args.realtime)
-    _say(args, f"scan of scene {scene.name!r}: {s.strategy}, {len(points)} palpations, "
+    _say(args, f"scan of scene {scene.name!r}: {s.strategy}, up to {planner.expected_total} palpations, "
                f"depth {settings.palpation.depth_mm} mm at {settings.palpation.speed_mm_s} mm/s")
-    report = {"scene": scene.name, **run_scan(bench, settings, points, _progress_printer(args))}
+    report = {"scene": scene.name, **run_scan(bench, settings, planner, _progress_printer(args))}
     truth = truth_lumps(scene)
     report["truth"] = {"lumps": truth}
     report["metrics"] = metrics.compare(truth, report["lumps"])
