@@ -75,6 +75,13 @@ class PalpationSettings(_Section):
         return self
 
 
+class StiffnessSettings(_Section):
+    # "select" lets the data choose by `criterion`; a model name fixes it ("linear" is the seed paper's §3.1).
+    model: Literal["select", "linear", "linear-offset", "kelvin-voigt", "power", "exponential", "hunt-crossley"] = "select"
+    criterion: Literal["aicc", "bic"] = "aicc"
+    reference_depth_mm: Annotated[float, Field(gt=0, le=30)] = 2.0  # where the one comparable stiffness is read
+
+
 class SafetySettings(_Section):
     force_cap_n: Positive = 6.0
     workspace_margin_mm: NonNegative = 15.0
@@ -101,6 +108,7 @@ class Settings(_Section):
     servo: ServoSettings = ServoSettings()
     control: ControlSettings = ControlSettings()
     palpation: PalpationSettings = PalpationSettings()
+    stiffness: StiffnessSettings = StiffnessSettings()
     safety: SafetySettings = SafetySettings()
     scan: ScanSettings = ScanSettings()
     bus: BusSettings = BusSettings()

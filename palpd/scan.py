@@ -11,7 +11,8 @@ from palpd.control.palpation import Palpation, PalpationRecord
 from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.errors import ScanFault, UsageError
 from palpd.estimate import estimate_lumps
-from palpd.stiffness import FitRejected, LinearFit, fit_linear
+from palpd.stiffness import FitRejected, StiffnessResult
+from palpd.stiffness.palpation import fit_palpation
 
 PARK_HEIGHT_MM = 20.0
 
@@ -19,7 +20,7 @@ PARK_HEIGHT_MM = 20.0
 @dataclass
 class Probe:
     record: PalpationRecord
-    fit: LinearFit | None
+    fit: StiffnessResult | None
     rejected: str | None = None
 
     @property
@@ -31,6 +32,7 @@ class Probe:
                "stiffness_n_per_mm": None if self.fit is None else round(self.fit.stiffness_n_per_mm, 5)}
         if self.fit is not None:
             out["stiffness_se_n_per_mm"] = round(self.fit.stiffness_se_n_per_mm, 6)
+            out["stiffness_model"] = self.fit.model
             out["max_force_n"] = round(self.record.max_force_n, 4)
         else:
             out["rejected"] = self.rejected
@@ -76,7 +78,7 @@ def palpate(bench: Bench, settings, xy_mm) -> Probe:
     bench.servo.run(palpation)
     record = palpation.record
     try:
-        return Probe(record, fit_linear(record.depth_mm, record.force_n))
+        return Probe(record, fit_palpation(record, settings.stiffness, settings.servo.rate_hz))
     except FitRejected as exc:
         reason = "no contact found" if record.stop_reason == "no_contact" else str(exc)
         return Probe(record, None, reason)

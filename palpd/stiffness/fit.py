@@ -1,0 +1,120 @@
+"""Fitting one model to one palpation: parameters, standard errors, residual, samples used."""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from palpd.stiffness.models import LINEAR_OFFSET, Model, initial_guess
+from palpd.stiffness.samples import FitRejected, Samples, check_rise, prepare
+
+
+@dataclass(frozen=True)
+class ModelFit:
+    model: str
+    params: dict[str, float]  # physical values, units in the names
+    se: dict[str, float]  # their standard errors
+    residual_rms_n: float
+    samples: int
+    rss_scaled: float  # residual sum of squares on the scaled forces, for the information criteria
+    stiffness_n_per_mm: float  # dF/dx at the reference indentation
+    stiffness_se_n_per_mm: float
+    reference_depth_mm: float
+
+    def as_dict(self) -> dict:
+        return {"model": self.model, "params": self.params, "se": self.se, "residual_rms_n": self.residual_rms_n,
+                "samples": self.samples, "stiffness_n_per_mm": self.stiffness_n_per_mm,
+                "stiffness_se_n_per_mm": self.stiffness_se_n_per_mm, "reference_depth_mm": self.reference_depth_mm}
+
+
+def fit_model(model: Model, samples: Samples, reference_depth_mm: float) -> ModelFit:
+    d, f, rate = samples.scaled()
+    if model.needs_rate and rate is None:
+        raise FitRejected(f"model {model.name} needs the indentation rate", "bad_shape")
+    theta = _solve_linear(model, d, f, rate) if model.linear else _solve_nonlinear(model, d, f, rate)
+    residual = f - model.predict(theta, d, rate)
+    rss = float(residual @ residual)
+    cov = _covariance(model, theta, d, rate, rss)
+    scales = (samples.depth_scale_mm, samples.force_scale_n, samples.rate_scale_mm_s)
+
+    def physical(t):
+        return model.physical(t, *scales)
+
+    def stiffness(t):
+        return float(model.tangent(physical(t), reference_depth_mm))
+
+    params = physical(theta)
+    jac_params = _numeric_jacobian(physical, theta)
+    se = np.sqrt(np.maximum(np.diag(jac_params @ cov @ jac_params.T), 0.0))
+    grad_k = _numeric_jacobian(lambda t: np.array([stiffness(t)]), theta)
+    k_ref, k_se = stiffness(theta), math.sqrt(max(float((grad_k @ cov @ grad_k.T)[0, 0]), 0.0))
+    if not (math.isfinite(k_ref) and math.isfinite(k_se) and np.all(np.isfinite(params))):
+        raise FitRejected(f"model {model.name} gave no finite stiffness", "not_converged")
+    return ModelFit(model.name, _named(model, params), _named(model, se),
+                    math.sqrt(rss / d.size) * samples.force_scale_n, samples.n, rss, k_ref, k_se, reference_depth_mm)
+
+
+def _named(model: Model, values) -> dict[str, float]:
+    return {name: float(v) for name, v in zip(model.params, values)}
+
+
+def _solve_linear(model: Model, d, f, rate) -> np.ndarray:
+    design = model.predict.design(d, rate)
+    theta, *_ = np.linalg.lstsq(design, f, rcond=None)
+    return theta
+
+
+def _solve_nonlinear(model: Model, d, f, rate) -> np.ndarray:
+    lower, upper = (np.array(b, dtype=float) for b in model.bounds)
+    best, best_cost = None, math.inf
+    for start in model.starts:
+        x0 = np.clip(initial_guess(model, start, d, f), lower + 1e-9, upper - 1e-9)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            result = least_squares(lambda t: model.predict(t, d, rate) - f, x0, bounds=(lower, upper),
+                                   x_scale="jac", max_nfev=200)
+        if np.all(np.isfinite(result.x)) and result.cost < best_cost:
+            best, best_cost = result.x, result.cost
+    if best is None:
+        raise FitRejected(f"model {model.name} did not converge", "not_converged")
+    return best
+
+
+def _covariance(model: Model, theta, d, rate, rss: float) -> np.ndarray:
+    jac = model.predict.design(d, rate) if model.linear else _numeric_jacobian(lambda t: model.predict(t, d, rate), theta)
+    dof = max(d.size - theta.size, 1)
+    return np.linalg.pinv(jac.T @ jac) * (rss / dof)
+
+
+def _numeric_jacobian(func, theta: np.ndarray) -> np.ndarray:
+    theta = np.asarray(theta, dtype=float)
+    base = np.atleast_1d(func(theta))
+    jac = np.empty((base.size, theta.size))
+    for i in range(theta.size):
+        step = 1e-6 * max(abs(theta[i]), 1e-3)
+        bumped = theta.copy()
+        bumped[i] += step
+        jac[:, i] = (np.atleast_1d(func(bumped)) - base) / step
+    return jac
+
+
+@dataclass(frozen=True, slots=True)
+class LinearFit:
+    """The foundation's straight-line fit, kept for its callers."""
+
+    stiffness_n_per_mm: float
+    intercept_n: float
+    stiffness_se_n_per_mm: float
+    residual_rms_n: float
+    samples: int
+
+
+def fit_linear(depth_mm, force_n) -> LinearFit:
+    """Least-squares line force = k * depth + c; k is the stiffness (the seed paper's §3.1)."""
+    samples = prepare(depth_mm, force_n)
+    check_rise(samples)
+    fit = fit_model(LINEAR_OFFSET, samples, 0.0)
+    return LinearFit(fit.params["k_n_per_mm"], fit.params["c_n"], fit.se["k_n_per_mm"], fit.residual_rms_n, fit.samples)

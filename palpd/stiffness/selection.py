@@ -1,0 +1,84 @@
+"""Choosing the model a palpation's data asks for, by AICc or BIC, and the one comparable number.
+
+The simplest model wins unless a richer one is clearly better: among models
+whose criterion lies within CLEARLY_BETTER of the best, the one with the
+fewest parameters is chosen. The stiffness reported is the chosen model's
+dF/dx at the reference indentation, with its standard error (the learner's
+observation noise).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from palpd.stiffness.fit import ModelFit, fit_model
+from palpd.stiffness.models import MODELS, candidates
+from palpd.stiffness.samples import FitRejected, check_rise, prepare
+
+CRITERIA = ("aicc", "bic")
+CLEARLY_BETTER = 2.0  # Burnham & Anderson: a difference below 2 is no real support
+SELECT = "select"
+
+
+@dataclass(frozen=True)
+class StiffnessResult:
+    chosen: ModelFit
+    criterion: str
+    scores: dict[str, float]  # criterion value of every model tried (lower is better)
+
+    @property
+    def stiffness_n_per_mm(self) -> float:
+        return self.chosen.stiffness_n_per_mm
+
+    @property
+    def stiffness_se_n_per_mm(self) -> float:
+        return self.chosen.stiffness_se_n_per_mm
+
+    @property
+    def model(self) -> str:
+        return self.chosen.model
+
+
+def information_criterion(fit: ModelFit, parameters: int, criterion: str) -> float:
+    n, p = fit.samples, parameters + 1  # + 1: the noise variance is estimated too
+    log_likelihood_term = n * math.log(max(fit.rss_scaled / n, 1e-300))
+    if criterion == "bic":
+        return log_likelihood_term + p * math.log(n)
+    correction = 2.0 * p * (p + 1) / (n - p - 1) if n - p - 1 > 0 else math.inf
+    return log_likelihood_term + 2.0 * p + correction
+
+
+def fit_stiffness(depth_mm, force_n, rate_mm_s=None, saturated=None, model: str = SELECT,
+                  criterion: str = "aicc", reference_depth_mm: float = 2.0) -> StiffnessResult:
+    """Fit one palpation with the named model, or select among all it supports. Raises FitRejected."""
+    if criterion not in CRITERIA:
+        raise ValueError(f"unknown criterion {criterion!r}; choose from {', '.join(CRITERIA)}")
+    samples = prepare(depth_mm, force_n, rate_mm_s, saturated)
+    check_rise(samples)
+    if model != SELECT:
+        if model not in MODELS:
+            raise ValueError(f"unknown stiffness model {model!r}; choose from {SELECT}, {', '.join(MODELS)}")
+        fit = fit_model(MODELS[model], samples, reference_depth_mm)
+        return StiffnessResult(fit, criterion, {fit.model: information_criterion(fit, MODELS[model].size, criterion)})
+    return _select(samples, criterion, reference_depth_mm)
+
+
+def _select(samples, criterion: str, reference_depth_mm: float) -> StiffnessResult:
+    fits, scores = [], {}
+    for candidate in candidates(samples.rate_mm_s is not None):
+        if candidate.size >= samples.n - 1:
+            continue  # not enough samples to tell this model's parameters apart
+        try:
+            fit = fit_model(candidate, samples, reference_depth_mm)
+        except FitRejected:
+            continue
+        fits.append((candidate.size, fit))
+        scores[fit.model] = information_criterion(fit, candidate.size, criterion)
+    if not fits:
+        raise FitRejected("no stiffness model could be fitted", "not_converged")
+    best = min(scores.values())
+    plausible = [(size, fit) for size, fit in fits if scores[fit.model] <= best + CLEARLY_BETTER]
+    chosen = min(plausible, key=lambda pair: pair[0])[1]
+    if chosen.stiffness_n_per_mm <= 0:
+        raise FitRejected(f"model {chosen.model} gives no positive stiffness", "no_rise")
+    return StiffnessResult(chosen, criterion, scores)
