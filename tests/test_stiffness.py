@@ -1,0 +1,150 @@
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from drivers.sim.scene import Scene
+from palpd.bench import open_simulated_bench
+from palpd.config import Settings
+from palpd.control.tasks import HoldAndCollect, MoveTo
+from palpd.scan import palpate
+from palpd.stiffness import REASONS, FitRejected, fit_stiffness
+from palpd.stiffness.batch import fit_batch, linear_batch
+
+DEPTH = np.linspace(0.0, 4.0, 400)
+
+
+def tared_palpation(scene, settings, xy=(5.0, -5.0)):
+    bench = open_simulated_bench(settings, scene)
+    bench.servo.start()
+    above = (xy[0], xy[1], settings.palpation.clearance_mm)
+    bench.servo.run(MoveTo(above, 80.0, 2000.0))
+    tare = HoldAndCollect(200, where=above)
+    bench.servo.run(tare)
+    bench.servo.forces.tare(tare.samples)
+    return palpate(bench, settings, xy)
+
+
+@pytest.mark.parametrize("k, n", [(0.12, 1.0), (0.6, 1.0), (0.12, 1.5), (0.3, 2.0)])
+def test_simulated_palpation_recovers_the_scene_k_and_n_within_5_percent(k, n):
+    scene = Scene(name="hc", tissue={"stiffness_n_per_mm": k, "exponent": n}, sensor={"tilt": True})
+    probe = tared_palpation(scene, Settings().updated(stiffness={"model": "hunt-crossley"}))
+    params = probe.fit.chosen.params
+    assert params["k_n_per_mm_n"] == pytest.approx(k, rel=0.05)
+    assert params["n"] == pytest.approx(n, rel=0.05)
+    reference = k * n * 2.0 ** (n - 1)  # dF/dx at the 2 mm reference indentation
+    assert probe.stiffness_n_per_mm == pytest.approx(reference, rel=0.05)
+
+
+def test_selection_keeps_a_linear_tissue_linear_and_reports_k():
+    probe = tared_palpation(Scene(name="lin", tissue={"stiffness_n_per_mm": 0.12}), Settings())
+    assert probe.fit.model in ("linear-offset", "kelvin-voigt")  # a straight line, with or without a rate term
+    assert probe.stiffness_n_per_mm == pytest.approx(0.12, rel=0.03)
+    assert 0 < probe.fit.stiffness_se_n_per_mm < 0.01 * 0.12
+    assert probe.as_dict()["stiffness_model"] == probe.fit.model
+
+
+def test_selection_picks_a_curved_model_for_a_curved_trace():
+    rng = np.random.default_rng(1)
+    result = fit_stiffness(DEPTH, 0.2 * (DEPTH + 0.3) ** 1.5 + rng.normal(0, 0.01, DEPTH.size))
+    assert result.model == "power"
+    assert result.chosen.params["n"] == pytest.approx(1.5, rel=0.05)
+    assert result.stiffness_n_per_mm == pytest.approx(0.2 * 1.5 * 2.0**0.5, rel=0.02)
+    straight = fit_stiffness(DEPTH, 0.3 * DEPTH + 0.05 + rng.normal(0, 0.01, DEPTH.size), criterion="bic")
+    assert straight.model == "linear-offset" and straight.stiffness_n_per_mm == pytest.approx(0.3, rel=0.01)
+
+
+def test_hunt_crossley_recovers_damping_when_the_rate_varies():
+    t = np.linspace(0.0, 1.0, 1000)
+    depth = 2.0 - 2.0 * np.cos(math.pi * t)  # in and out again, so the rate changes sign
+    rate = 2.0 * math.pi * np.sin(math.pi * t)
+    x = depth + 0.2
+    force = 0.15 * x**1.3 + 0.02 * x**1.3 * rate + np.random.default_rng(2).normal(0, 0.005, t.size)
+    result = fit_stiffness(depth, force, rate, model="hunt-crossley")
+    p = result.chosen.params
+    assert p["k_n_per_mm_n"] == pytest.approx(0.15, rel=0.05) and p["n"] == pytest.approx(1.3, rel=0.05)
+    assert p["b_n_s_per_mm_n1"] == pytest.approx(0.02, rel=0.05)
+    assert all(se > 0 for se in result.chosen.se.values())
+    kv = fit_stiffness(depth, 0.2 * depth + 0.03 * rate + 0.01, rate, model="kelvin-voigt").chosen.params
+    assert kv["k_n_per_mm"] == pytest.approx(0.2) and kv["b_n_s_per_mm"] == pytest.approx(0.03)
+
+
+@pytest.mark.parametrize("depth, force, reason", [
+    ([], [], "too_few_samples"),
+    ([1.0], [0.1], "too_few_samples"),
+    ([1.0, 2.0], [0.1, 0.2], "too_few_samples"),
+    ([0.0, 1.0, 2.0], [0.0, 0.1, 0.25], None),
+    ([1.0] * 10, list(np.linspace(0, 1, 10)), "no_range"),
+    (list(1.0 + np.linspace(0, 5e-5, 10)), list(np.linspace(0, 1, 10)), "no_range"),
+    (list(DEPTH), [0.4] * DEPTH.size, "constant_force"),
+    (list(DEPTH), list(-0.3 * DEPTH), "reversed"),
+    ([np.nan] * 5 + [np.inf] * 5, list(range(10)), "too_few_samples"),
+    ([[1.0, 2.0]], [[1.0, 2.0]], "bad_shape"),
+    ([1.0, 2.0, 3.0], [1.0, 2.0], "bad_shape"),
+])
+def test_degenerate_traces_are_rejected_by_name(depth, force, reason):
+    if reason is None:
+        assert fit_stiffness(depth, force).stiffness_n_per_mm > 0
+        return
+    with pytest.raises(FitRejected) as caught:
+        fit_stiffness(depth, force)
+    assert caught.value.reason == reason and str(caught.value)
+
+
+def test_saturated_samples_are_dropped_or_named():
+    force = np.minimum(0.5 * DEPTH, 1.0)  # flat above 1 N: the sensor saturated
+    kept = fit_stiffness(DEPTH, force, saturated=force >= 1.0, model="linear-offset")
+    assert kept.stiffness_n_per_mm == pytest.approx(0.5) and kept.chosen.samples == np.count_nonzero(force < 1.0)
+    with pytest.raises(FitRejected) as caught:
+        fit_stiffness(DEPTH, force, saturated=np.arange(DEPTH.size) > 1)
+    assert caught.value.reason == "saturated"
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(k=st.floats(1e-4, 1e3), depth_max=st.floats(1e-3, 30.0), n=st.integers(4, 600),
+       noise=st.floats(0.0, 0.02), seed=st.integers(0, 2**16))
+def test_any_stiffness_and_indentation_fits_correctly(k, depth_max, n, noise, seed):
+    depth = np.linspace(0.0, depth_max, n)
+    top = k * depth_max
+    force = k * depth + 0.01 * top + np.random.default_rng(seed).normal(0.0, noise * top, n)
+    result = fit_stiffness(depth, force)
+    assert math.isfinite(result.stiffness_n_per_mm) and math.isfinite(result.stiffness_se_n_per_mm)
+    assert result.stiffness_n_per_mm == pytest.approx(k, rel=0.05 + 20 * noise / math.sqrt(n))
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=0, max_size=40),
+       st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=0, max_size=40),
+       st.sampled_from(["select", "linear", "hunt-crossley", "exponential"]))
+def test_arbitrary_samples_fit_or_are_rejected_by_name(depth, force, model):
+    size = min(len(depth), len(force))
+    depth, force = depth[:size], force[:size]
+    rate = [1.0] * size
+    try:
+        result = fit_stiffness(depth, force, rate if model == "hunt-crossley" else None, model=model)
+    except FitRejected as exc:
+        assert exc.reason in REASONS
+        return
+    assert math.isfinite(result.stiffness_n_per_mm) and math.isfinite(result.stiffness_se_n_per_mm)
+
+
+def test_a_million_samples_fit_in_bounded_time():
+    depth = np.linspace(0.0, 4.0, 1_000_000)
+    force = 0.25 * depth + np.random.default_rng(3).normal(0, 0.01, depth.size)
+    result = fit_stiffness(depth, force)
+    assert result.stiffness_n_per_mm == pytest.approx(0.25, rel=0.01)
+
+
+def test_batch_linear_fits_match_one_by_one_and_mark_bad_rows():
+    rng = np.random.default_rng(4)
+    ks = np.array([0.1, 0.5, 2.0])
+    depth = np.tile(DEPTH, (4, 1))
+    force = np.vstack([ks[:, None] * DEPTH + rng.normal(0, 0.01, (3, DEPTH.size)), np.full(DEPTH.size, 0.3)])
+    depth[1, 100:] = np.nan  # a shorter trace, padded
+    batch = linear_batch(depth, force)
+    assert batch["stiffness_n_per_mm"][:3] == pytest.approx(ks, rel=0.02)
+    assert math.isnan(batch["stiffness_n_per_mm"][3]) and batch["samples"][1] == 100
+    one_by_one = fit_batch([(depth[i], force[i]) for i in range(4)], model="linear-offset")
+    assert [r.stiffness_n_per_mm for r in one_by_one[:3]] == pytest.approx(batch["stiffness_n_per_mm"][:3].tolist())
+    assert isinstance(one_by_one[3], FitRejected) and one_by_one[3].reason == "constant_force"
