@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT := out
 
-.PHONY: run test clean
+.PHONY: run test reproduce clean
 
 $(BIN)/palpd: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -19,6 +19,9 @@ run: $(BIN)/palpd
 
 test: $(BIN)/palpd
 	$(BIN)/python -m pytest
+
+reproduce: $(BIN)/palpd
+	$(BIN)/python scripts/reproduce.py
 
 clean:
 	rm -rf $(VENV) $(OUT) build *.egg-info

@@ -9,6 +9,10 @@ from palpd.errors import PalpdError
 
 
 def write_json(path: str | Path, data) -> None:
+    write_text(path, json.dumps(data, indent=2) + "\n")
+
+
+def write_text(path: str | Path, text: str) -> None:
     """Write to a temporary file, fsync, then rename over the target."""
     path = Path(path)
     temporary = path.with_name(f".{path.name}.tmp")
@@ -16,8 +20,7 @@ def write_json(path: str | Path, data) -> None:
         if path.parent and not path.parent.exists():
             path.parent.mkdir(parents=True)
         with temporary.open("w") as handle:
-            json.dump(data, handle, indent=2)
-            handle.write("\n")
+            handle.write(text)
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(temporary, path)
