@@ -58,7 +58,8 @@ def _assemble(settings, robot, sensor, clock, world=None) -> Bench:
     control = settings.control
     servo = ServoLoop(
         robot, sensor, clock, frame,
-        CartesianPD(control.stiffness_n_per_mm, control.damping_n_s_per_mm, settings.robot.current_limit_a),
+        CartesianPD(control.stiffness_n_per_mm, control.damping_n_s_per_mm, settings.robot.current_limit_a,
+                    settings.safety.force_cap_n),
         SafetySupervisor(settings.safety, settings.tissue.size_mm, _home_mm(frame), 1.0 / settings.servo.rate_hz),
         forces, settings.servo.rate_hz, control.velocity_filter_hz,
         safety_settings=settings.safety, retract_height_mm=settings.palpation.clearance_mm,

@@ -27,6 +27,7 @@ from palpd.errors import ScanFault
 Vec3 = tuple[float, float, float]
 FAULT_HISTORY_TICKS = 20  # samples kept with a fault record
 RETRACT_ACCEL_MM_S2 = 5000.0
+FORCE_LIMITED_TICKS = 10  # commanding the capped force this long means pushing against something rigid
 
 
 @dataclass(slots=True)
@@ -65,6 +66,7 @@ class ServoLoop:
         self.history: deque = deque(maxlen=FAULT_HISTORY_TICKS)
         self.tick_hook = None  # called with each Tick after the command is written (recorders, tests)
         self._estop_requested = False
+        self._limited_ticks = 0
 
     @property
     def ticks(self) -> int:
@@ -104,6 +106,10 @@ class ServoLoop:
         if self._estop_requested:
             return Fault("estop", "e-stop requested", tick.t_s)
         fault = self.supervisor.check(tick)
+        self._limited_ticks = self._limited_ticks + 1 if self.controller.limited else 0
+        if fault is None and self._limited_ticks >= FORCE_LIMITED_TICKS:
+            fault = Fault("force_cap", f"commanded force held at the {self.controller.force_limit_n} N cap for "
+                          f"{FORCE_LIMITED_TICKS} ticks: pushing against something rigid", tick.t_s)
         if fault is None and tick.t_s > give_up:
             fault = Fault("task_timeout", "motion did not finish in time", tick.t_s)
         return fault
