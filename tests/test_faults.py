@@ -105,3 +105,23 @@ def test_tissue_out_of_reach_is_refused_at_start_up():
     scene = Scene(name="far", placement={"origin_mm": (0.0, -60.0, 60.0)})  # centre reachable, near edge not
     with pytest.raises(ConfigError, match="outside the arm's reach"):
         open_simulated_bench(Settings(), scene)
+
+
+def test_bench_loop_reports_servo_and_bare_loop_timing(run_cli):
+    import json
+
+    result = run_cli("bench", "loop", "--seconds", "0.3", "--json")
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout)
+    for name in ("loop", "bare_loop"):
+        loop = figures[name]
+        assert loop["rate_hz"] == 1000.0 and 200 <= loop["ticks"] <= 400
+        assert set(loop["lateness_us"]) == {"p50", "p99", "p999", "max"} and set(loop["compute_us"]) == {"p50", "p99"}
+        assert 0 <= loop["lateness_us"]["p50"] <= loop["lateness_us"]["max"]
+    assert figures["loop"]["compute_us"]["p50"] > figures["bare_loop"]["compute_us"]["p50"]
+
+
+def test_bench_loop_refuses_a_bad_length(run_cli):
+    from conftest import assert_one_line_error
+
+    assert_one_line_error(run_cli("bench", "loop", "--seconds", "-1"), "--seconds")
