@@ -87,6 +87,12 @@ class SafetySettings(_Section):
     workspace_margin_mm: NonNegative = 15.0
     max_tip_speed_mm_s: Positive = 400.0
     workspace_z_mm: tuple[Finite, Finite] = (-20.0, 80.0)  # tip height range above the tissue surface
+    joint_limit_margin_rad: NonNegative = 0.02  # stop this short of the hard stops
+    max_joint_speed_rad_s: Positive = 20.0  # an encoder step faster than this is a glitch, not motion
+    max_sample_age_s: Positive = 0.005  # a force sample older than this is stale (a frozen sensor)
+    max_tick_gap_s: Positive = 0.005  # a servo tick later than this after the last one is a stalled loop
+    retract_speed_mm_s: Annotated[float, Field(gt=0, le=200)] = 60.0  # controlled stop: back out this fast
+    retract_timeout_s: Annotated[float, Field(gt=0, le=5)] = 0.5  # then cut the current, retracted or not
 
 
 class ScanSettings(_Section):

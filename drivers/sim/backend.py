@@ -4,6 +4,7 @@ from __future__ import annotations
 from drivers.errors import DriverInitializationError, DriverOperationError
 from drivers.interfaces import ForceSample, ForceSensor, JointState, Robot
 from drivers.phantom import model
+from drivers.sim.nano17 import FORCE_RANGE_N
 from drivers.sim.world import NO_FORCE, SimWorld
 
 
@@ -39,6 +40,7 @@ class SimRobot(Robot):
 
 
 class SimForceSensor(ForceSensor):
+    force_range_n = FORCE_RANGE_N
     def __init__(self, world: SimWorld | None = None) -> None:
         if world is None:
             raise DriverInitializationError("sim force sensor: needs a simulated world (a scene)")

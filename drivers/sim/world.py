@@ -7,6 +7,7 @@ from drivers.geometry import TissueFrame, rotate_xy
 from drivers.interfaces import STATUS_AMPLIFIERS_ON, STATUS_ESTOP, ForceSample
 from drivers.phantom import model
 from drivers.sim.arm import SimArm
+from drivers.sim.faults import SimFaults
 from drivers.sim.nano17 import SimNano17
 from drivers.sim.scene import Scene
 from drivers.sim.tissue import StiffnessField, hunt_crossley_n
@@ -32,6 +33,8 @@ class SimWorld:
         self.amplifiers_on = False
         self.estop = False
         self.contact_force_robot: model.Vec3 = NO_FORCE
+        self.faults = SimFaults()  # fault injection for tests; all off
+        self.hand = None  # when set, a person moves the arm: hand.q_at(t_s) overrides the dynamics
         self._rotation_deg = scene.placement.rotation_deg
         self._tissue = scene.tissue
 
@@ -42,16 +45,17 @@ class SimWorld:
             self.t_s += PHYSICS_STEP_S
 
     def status(self) -> int:
-        return (STATUS_AMPLIFIERS_ON if self.amplifiers_on else 0) | (STATUS_ESTOP if self.estop else 0)
+        bits = (STATUS_AMPLIFIERS_ON if self.amplifiers_on else 0) | (STATUS_ESTOP if self.estop else 0)
+        return self.faults.status(bits)
 
     def encoder_counts(self) -> tuple[int, int, int]:
-        return model.angles_to_counts(tuple(self.arm.q))  # type: ignore[arg-type]
+        return self.faults.counts(model.angles_to_counts(tuple(self.arm.q)))  # type: ignore[arg-type]
 
     def sensor_sample(self) -> ForceSample:
         force = self.contact_force_robot
         if self.scene.sensor.tilt:
             force = model.base_to_tilt(tuple(self.arm.q), self.q_aligned, force)  # type: ignore[arg-type]
-        return self.sensor.sample(self.t_s, self.frame.vector_from_robot(force))
+        return self.faults.sample(self.sensor.sample(self.t_s, self.frame.vector_from_robot(force)))
 
     # -- physics -----------------------------------------------------------------------------
     def felt_stiffness(self, x_mm: float, y_mm: float) -> float:
@@ -66,7 +70,10 @@ class SimWorld:
         self.contact_force_robot = force
         tau_external = model.joint_torques(q, force) if force is not NO_FORCE else NO_FORCE
         tau_motor = model.currents_to_torques(self.currents_a) if self.amplifiers_on else NO_FORCE
-        self.arm.step(dt, tau_motor, tau_external)
+        if self.hand is not None:
+            self.arm.q = list(self.hand.q_at(self.t_s + dt))
+        else:
+            self.arm.step(dt, tau_motor, tau_external)
 
     def _contact_force(self, q) -> model.Vec3:
         tip = self.frame.from_robot(model.forward(q))
@@ -78,4 +85,5 @@ class SimWorld:
             rate_mm_s = -1000.0 * self.frame.vector_from_robot(model.tip_velocity(q, tuple(self.arm.qd)))[2]
         k = self.felt_stiffness(1000.0 * tip[0], 1000.0 * tip[1])
         normal_n = hunt_crossley_n(k, self._tissue.exponent, self._tissue.damping_n_s_per_mm, depth_mm, rate_mm_s)
+        normal_n += self.faults.extra_normal_force_n(1000.0 * tip[0], 1000.0 * tip[1], depth_mm)
         return self.frame.vector_to_robot((0.0, 0.0, normal_n))

@@ -1,12 +1,15 @@
 """One palpation as a state machine: above the point, approach, contact, indent, hold, retract.
 
-Contact is detected on the bias-compensated normal force with hysteresis. The
-indentation stops at the configured depth or force, whichever comes first.
+Contact is detected on the bias-compensated normal force with hysteresis, by
+the same segmenter that finds palpations in a hand-palpated (manual) stream, and
+the record is the segment it finds. The indentation stops at the configured
+depth or force, whichever comes first.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from palpd.control.segment import Segment, Segmenter
 from palpd.control.tasks import MoveTo
 
 Vec3 = tuple[float, float, float]
@@ -40,11 +43,16 @@ class Palpation:
         self._target_z = settings.clearance_mm
         self._last_t = None
         self._hold_until = 0.0
+        self.segmenter = Segmenter(settings.contact_on_n, settings.contact_off_n)
+        self._segment: Segment | None = None
         self.done = False
 
     def step(self, tick) -> Vec3:
         dt = 0.0 if self._last_t is None else tick.t_s - self._last_t
         self._last_t = tick.t_s
+        found = self.segmenter.push(tick.t_s, tick.tip_mm, tick.normal_force_n)
+        if found is not None and self._segment is None:
+            self._segment = found
         return getattr(self, "_" + self._phase)(tick, dt)
 
     def _above(self, tick, dt) -> Vec3:
@@ -54,8 +62,8 @@ class Palpation:
         return target
 
     def _approach(self, tick, dt) -> Vec3:
-        if tick.normal_force_n >= self.s.contact_on_n:
-            self.record.contact_z_mm = tick.tip_mm[2]
+        if self.segmenter.in_contact:
+            self.record.contact_z_mm = self.segmenter.current.contact_z_mm
             self._phase = "indent"
             return self._indent(tick, 0.0)
         self._target_z -= self.s.approach_speed_mm_s * dt
@@ -81,27 +89,25 @@ class Palpation:
         return self._setpoint()
 
     def _retract(self, tick, dt) -> Vec3:
-        if self.record.contact_z_mm is not None and tick.normal_force_n > self.s.contact_off_n:
-            self.record.unload_depth_mm.append(self.record.contact_z_mm - tick.tip_mm[2])
-            self.record.unload_force_n.append(tick.normal_force_n)
         target = self._task.step(tick)
         if self._task.done:
             self.record.t_end_s = tick.t_s
+            self._take_segment()
             self.done = True
         return target
 
     def _keep(self, tick) -> float:
-        depth = self.record.contact_z_mm - tick.tip_mm[2]
-        rec = self.record
-        rec.depth_mm.append(depth)
-        rec.force_n.append(tick.normal_force_n)
-        rec.max_force_n = max(rec.max_force_n, tick.normal_force_n)
-        n = len(rec.depth_mm)
-        rec.xy_mm = (  # running mean of where the tip actually pressed
-            rec.xy_mm[0] + (tick.tip_mm[0] - rec.xy_mm[0]) / n,
-            rec.xy_mm[1] + (tick.tip_mm[1] - rec.xy_mm[1]) / n,
-        )
-        return depth
+        self.record.max_force_n = max(self.record.max_force_n, tick.normal_force_n)
+        return self.record.contact_z_mm - tick.tip_mm[2]
+
+    def _take_segment(self) -> None:
+        """The loading and unloading traces, as the segmenter cut them out of the stream."""
+        seg, rec = self._segment, self.record
+        if seg is None:
+            return
+        rec.contact_z_mm, rec.xy_mm = seg.contact_z_mm, seg.xy_mm
+        rec.depth_mm, rec.force_n = seg.depth_mm, seg.force_n
+        rec.unload_depth_mm, rec.unload_force_n = seg.unload_depth_mm, seg.unload_force_n
 
     def _start_retract(self, tick, reason: str) -> None:
         self.record.stop_reason = reason

@@ -3,19 +3,31 @@
 It runs on whatever clock it is given: the virtual clock in simulation (time
 passes only when the loop sleeps) or the wall clock on a bench. An overrun
 skips the missed cycles instead of bursting to catch up.
+
+A fault stops the motion before any command of that tick is written: faults
+after which the probe can still be trusted to move (force cap, timeout) back it
+out first, supervised, for at most retract_timeout_s; every other fault cuts
+the current at once. Either way the fault is latched until reset().
 """
 from __future__ import annotations
 
 import math
+import time
+from collections import deque
 from dataclasses import dataclass
 
 from drivers.geometry import TissueFrame
 from drivers.interfaces import ForceSample
 from drivers.phantom import model
-from palpd.control.safety import Fault
+from palpd.control.safety import RETRACTABLE, Fault
+from palpd.control.tasks import MoveTo
+from palpd.control.timing import TimingStats
 from palpd.errors import ScanFault
 
 Vec3 = tuple[float, float, float]
+FAULT_HISTORY_TICKS = 20  # samples kept with a fault record
+RETRACT_ACCEL_MM_S2 = 5000.0
+FORCE_LIMITED_TICKS = 10  # commanding the capped force this long means pushing against something rigid
 
 
 @dataclass(slots=True)
@@ -30,29 +42,51 @@ class Tick:
     normal_force_n: float
     sample: ForceSample
     status: int
+    gap_s: float = 0.0  # since the previous tick
 
 
 class ServoLoop:
     def __init__(self, robot, sensor, clock, frame: TissueFrame, controller, supervisor, forces,
-                 rate_hz: float = 1000.0, velocity_filter_hz: float = 100.0) -> None:
+                 rate_hz: float = 1000.0, velocity_filter_hz: float = 100.0, safety_settings=None,
+                 retract_height_mm: float = 4.0) -> None:
         self.robot, self.sensor, self.clock = robot, sensor, clock
         self.frame, self.controller, self.supervisor, self.forces = frame, controller, supervisor, forces
         self.period_s = 1.0 / rate_hz
         self._smoothing = math.exp(-2.0 * math.pi * velocity_filter_hz * self.period_s)
         self._previous_tip: Vec3 | None = None
+        self._previous_t: float | None = None
         self._velocity: Vec3 = (0.0, 0.0, 0.0)
-        self.fault = None
-        self.ticks = 0
-        self.overruns = 0
+        self.retract_speed_mm_s = getattr(safety_settings, "retract_speed_mm_s", 60.0)
+        self.retract_timeout_s = getattr(safety_settings, "retract_timeout_s", 0.5)
+        self.retract_height_mm = retract_height_mm
+        self.fault: Fault | None = None
+        self.timing = TimingStats(rate_hz)
         self.max_contact_force_n = 0.0
         self.last_tick: Tick | None = None
+        self.history: deque = deque(maxlen=FAULT_HISTORY_TICKS)
+        self.tick_hook = None  # called with each Tick after the command is written (recorders, tests)
+        self._estop_requested = False
+        self._limited_ticks = 0
+
+    @property
+    def ticks(self) -> int:
+        return self.timing.ticks
+
+    @property
+    def overruns(self) -> int:
+        return self.timing.overruns
 
     def start(self) -> None:
         self.robot.enable()
         self._deadline = self.clock.now()
+        self._previous_t = None
 
     def stop(self) -> None:
         self.robot.disable()
+
+    def request_estop(self) -> None:
+        """The software e-stop input: the next tick cuts the current and latches a fault."""
+        self._estop_requested = True
 
     def run(self, task, timeout_s: float = 120.0) -> None:
         """Tick until the task is done; raises ScanFault (motors already off) if safety stops it."""
@@ -60,15 +94,32 @@ class ServoLoop:
             raise ScanFault(f"fault latched ({self.fault.code}): {self.fault.message}; reset first")
         give_up = self.clock.now() + timeout_s
         while not task.done:
+            started = time.perf_counter()
             tick = self._sense()
-            fault = self.supervisor.check(tick) or (
-                self._timeout_fault(tick) if tick.t_s > give_up else None
-            )
+            fault = self._check(tick, give_up)
             if fault is not None:
-                self._trip(fault)
-            target = task.step(tick)
-            self.robot.write(self.controller.currents(tick.q, tick.tip_mm, tick.velocity_mm_s, target))
-            self._wait_for_next_period()
+                self._controlled_stop(fault, tick)
+            self.robot.write(self.controller.currents(tick.q, tick.tip_mm, tick.velocity_mm_s, task.step(tick)))
+            self._end_tick(tick, started)
+
+    def _check(self, tick: Tick, give_up: float) -> Fault | None:
+        if self._estop_requested:
+            return Fault("estop", "e-stop requested", tick.t_s)
+        fault = self.supervisor.check(tick)
+        self._limited_ticks = self._limited_ticks + 1 if self.controller.limited else 0
+        if fault is None and self._limited_ticks >= FORCE_LIMITED_TICKS:
+            fault = Fault("force_cap", f"commanded force held at the {self.controller.force_limit_n} N cap for "
+                          f"{FORCE_LIMITED_TICKS} ticks: pushing against something rigid", tick.t_s)
+        if fault is None and tick.t_s > give_up:
+            fault = Fault("task_timeout", "motion did not finish in time", tick.t_s)
+        return fault
+
+    def _end_tick(self, tick: Tick, started: float) -> None:
+        if self.tick_hook is not None:
+            self.tick_hook(tick)
+        compute_s = time.perf_counter() - started
+        lateness_s = self._wait_for_next_period()
+        self.timing.record(lateness_s, compute_s)
 
     def _sense(self) -> Tick:
         state = self.robot.read()
@@ -81,9 +132,11 @@ class ServoLoop:
         normal = self.forces.normal_force(sample, q, force)
         if normal > self.max_contact_force_n:
             self.max_contact_force_n = normal
-        tick = Tick(state.t_s, q, tip, self._velocity, force, normal, sample, state.status)
+        gap = 0.0 if self._previous_t is None else state.t_s - self._previous_t
+        self._previous_t = state.t_s
+        tick = Tick(state.t_s, q, tip, self._velocity, force, normal, sample, state.status, gap)
         self.last_tick = tick
-        self.ticks += 1
+        self.history.append((tick.t_s, tip, force))
         return tick
 
     def _update_velocity(self, tip: Vec3) -> None:
@@ -99,22 +152,43 @@ class ServoLoop:
             a * v[2] + rate * (tip[2] - previous[2]),
         )
 
-    def _wait_for_next_period(self) -> None:
+    def _wait_for_next_period(self) -> float:
+        """Sleep to the next absolute deadline; returns how late the wake-up was (s)."""
         self._deadline += self.period_s
         now = self.clock.now()
         if now > self._deadline + self.period_s:  # overrun: skip what was missed, never burst
             missed = int((now - self._deadline) / self.period_s)
-            self.overruns += missed
+            self.timing.overruns += missed
             self._deadline += missed * self.period_s
         self.clock.sleep_until(self._deadline)
+        return max(0.0, self.clock.now() - self._deadline)
 
-    def _timeout_fault(self, tick: Tick) -> Fault:
-        return Fault("task_timeout", "motion did not finish in time", tick.t_s)
-
-    def _trip(self, fault) -> None:
-        self.robot.disable()
+    # -- stopping --------------------------------------------------------------------------------
+    def _controlled_stop(self, fault: Fault, tick: Tick) -> None:
+        fault = Fault(fault.code, fault.message, fault.t_s, tuple(self.history))
         self.fault = fault
+        if fault.code in RETRACTABLE:
+            self._retract(tick)
+        self.robot.disable()
         raise ScanFault(f"{fault.code}: {fault.message} at t = {fault.t_s:.3f} s; motors off")
 
+    def _retract(self, tick: Tick) -> None:
+        """Back straight out, still supervised; any fault that makes moving unsafe ends it at once."""
+        x, y, z = tick.tip_mm
+        goal = (x, y, max(z, self.retract_height_mm))
+        back_out = MoveTo(goal, self.retract_speed_mm_s, RETRACT_ACCEL_MM_S2, start=tick.tip_mm)
+        give_up = tick.t_s + self.retract_timeout_s
+        while not back_out.done:
+            started = time.perf_counter()
+            tick = self._sense()
+            fault = self._check(tick, math.inf)
+            if tick.t_s > give_up or (fault is not None and fault.code not in RETRACTABLE):
+                return
+            self.robot.write(self.controller.currents(tick.q, tick.tip_mm, tick.velocity_mm_s, back_out.step(tick)))
+            self._end_tick(tick, started)
+
     def reset(self) -> None:
+        """Clear a latched fault (an explicit operator action); the motors stay off until start()."""
         self.fault = None
+        self._estop_requested = False
+        self.supervisor.reset()

@@ -1,0 +1,101 @@
+"""palpd bench loop: the servo loop in real time against the simulator, next to a bare loop.
+
+The bare loop only sleeps to the same absolute deadlines, so the difference
+between the two is what the servo work costs the timing on this machine.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+from palpd.control.palpation import Palpation
+
+
+def add_parser(subparsers):
+    loop = subparsers.add_parser("loop", help="servo loop timing vs a bare sleep-to-deadline loop")
+    loop.add_argument("--seconds", type=float, default=5.0, metavar="S", help="length of each loop (default 5)")
+    loop.add_argument("--json", action="store_true", help="print the Bench JSON")
+    loop.add_argument("--config", metavar="FILE", help="settings (TOML)")
+    return loop
+
+
+def run(args) -> int:
+    from palpd.config import load_settings
+    from palpd.control.realtime import prepare_realtime
+    from palpd.errors import UsageError
+
+    if not 0 < args.seconds <= 3600:
+        raise UsageError("--seconds must be in (0, 3600]")
+    settings = load_settings(args.config)
+    for note in prepare_realtime():
+        print(f"palpd: {note}", file=sys.stderr)
+    bare = bare_loop(settings.servo.rate_hz, args.seconds)
+    servo, faults = servo_loop(settings, args.seconds)
+    result = {"loop": servo, "bare_loop": bare, "faults": faults}
+    if args.json:
+        print(json.dumps(result, indent=2))
+    else:
+        for name in ("loop", "bare_loop"):
+            r = result[name]
+            print(f"{name:9s}: {r['ticks']} ticks, lateness p50/p99/p99.9/max {r['lateness_us']['p50']}/"
+                  f"{r['lateness_us']['p99']}/{r['lateness_us']['p999']}/{r['lateness_us']['max']} us, "
+                  f"overruns {r['overruns']}, compute p50/p99 {r['compute_us']['p50']}/{r['compute_us']['p99']} us")
+    return 0
+
+
+def bare_loop(rate_hz: float, seconds: float) -> dict:
+    from drivers.clock import RealClock
+    from palpd.control.timing import TimingStats
+
+    clock, stats, period = RealClock(), TimingStats(rate_hz), 1.0 / rate_hz
+    deadline = clock.now()
+    end = deadline + seconds
+    while deadline < end:
+        started = time.perf_counter()
+        compute = time.perf_counter() - started
+        deadline += period
+        now = clock.now()
+        if now > deadline + period:
+            missed = int((now - deadline) / period)
+            stats.overruns += missed
+            deadline += missed * period
+        clock.sleep_until(deadline)
+        stats.record(max(0.0, clock.now() - deadline), compute)
+    return stats.summary()
+
+
+def servo_loop(settings, seconds: float) -> tuple[dict, list[dict]]:
+    """Palpate one point over and over on the simulated bench, on the wall clock."""
+    from drivers.sim.scene import Scene
+    from palpd.bench import open_simulated_bench
+    from palpd.errors import ScanFault
+
+    bench = open_simulated_bench(settings, Scene(name="bench"), realtime=True)
+    servo, faults = bench.servo, []
+    end = bench.clock.now() + seconds
+    servo.start()
+    while bench.clock.now() < end:
+        try:
+            servo.run(_PalpateUntil(end, settings.palpation))
+        except ScanFault:
+            faults.append({k: v for k, v in servo.fault.as_dict().items() if k != "last_samples"})
+            servo.reset()
+            servo.start()
+    servo.stop()
+    return servo.timing.summary(), faults
+
+
+class _PalpateUntil:
+    """Palpations at the tissue centre, one after another, until the wall clock says stop."""
+
+    def __init__(self, end_s: float, palpation_settings) -> None:
+        self.end_s, self.settings = end_s, palpation_settings
+        self._task = None
+        self.done = False
+
+    def step(self, tick):
+        if self._task is None or self._task.done:
+            self._task = Palpation((0.0, 0.0), self.settings)
+        self.done = tick.t_s >= self.end_s
+        return self._task.step(tick)

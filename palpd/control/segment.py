@@ -1,0 +1,121 @@
+"""Finding palpations in a continuous force/position stream.
+
+The seed paper palpated by hand; in manual mode nothing is commanded and this
+segmenter finds each palpation (contact onset, loading, unloading) in the
+stream. Autonomous palpations go through the same segmenter, so both paths fit
+the same data the same way.
+
+Robust against the three things a hand-held session has: noise (hysteresis
+between contact_on_n and contact_off_n, and a palpation must press at least
+min_peak_n and min_depth_mm), drift (the zero is tracked while out of contact
+and frozen during one) and double taps (a release below contact_off_n ends a
+palpation, so the second tap is a palpation of its own).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+Vec3 = tuple[float, float, float]
+
+
+@dataclass
+class Segment:
+    """One palpation: where it began, its loading and unloading traces, relative to the contact point."""
+
+    t_onset_s: float
+    contact_z_mm: float
+    baseline_n: float
+    xy_mm: tuple[float, float] = (0.0, 0.0)
+    depth_mm: list[float] = field(default_factory=list)  # loading: onset to peak force
+    force_n: list[float] = field(default_factory=list)
+    unload_depth_mm: list[float] = field(default_factory=list)  # unloading: peak to release
+    unload_force_n: list[float] = field(default_factory=list)
+    peak_force_n: float = 0.0
+    t_end_s: float = 0.0
+
+
+class Segmenter:
+    def __init__(self, contact_on_n: float, contact_off_n: float, min_peak_n: float = 0.15,
+                 min_depth_mm: float = 0.5, baseline_time_s: float = 0.5) -> None:
+        self.on_n, self.off_n = contact_on_n, contact_off_n
+        self.min_peak_n, self.min_depth_mm = min_peak_n, min_depth_mm
+        self.baseline_time_s = baseline_time_s
+        self.baseline_n: float | None = None
+        self.current: Segment | None = None
+        self.rejected = 0  # contacts too slight to be palpations (brushes, noise)
+        self._last_t: float | None = None
+        self._xy_sum = [0.0, 0.0]
+        self._trace: list[tuple[float, float]] = []  # (depth, force) since onset
+
+    @property
+    def in_contact(self) -> bool:
+        return self.current is not None
+
+    def push(self, t_s: float, tip_mm: Vec3, force_n: float) -> Segment | None:
+        """Feed one sample; returns a palpation when one has just ended."""
+        dt = 0.0 if self._last_t is None else t_s - self._last_t
+        self._last_t = t_s
+        if self.current is None:
+            self._track_baseline(force_n, dt)
+            if force_n - self.baseline_n >= self.on_n:
+                self._begin(t_s, tip_mm)
+            else:
+                return None
+        return self._continue(t_s, tip_mm, force_n)
+
+    def _track_baseline(self, force_n: float, dt: float) -> None:
+        if self.baseline_n is None or not math.isfinite(self.baseline_n):
+            self.baseline_n = force_n
+            return
+        self.baseline_n += (force_n - self.baseline_n) * (1.0 - math.exp(-dt / self.baseline_time_s))
+
+    def _begin(self, t_s: float, tip_mm: Vec3) -> None:
+        self.current = Segment(t_s, tip_mm[2], self.baseline_n)
+        self._xy_sum = [0.0, 0.0]
+        self._trace = []
+
+    def _continue(self, t_s: float, tip_mm: Vec3, force_n: float) -> Segment | None:
+        seg = self.current
+        pressed = force_n - seg.baseline_n
+        if pressed < self.off_n:
+            return self._end(t_s)
+        self._trace.append((seg.contact_z_mm - tip_mm[2], pressed))
+        self._xy_sum[0] += tip_mm[0]
+        self._xy_sum[1] += tip_mm[1]
+        return None
+
+    def _end(self, t_s: float) -> Segment | None:
+        seg, trace, self.current = self.current, self._trace, None
+        if not trace:
+            return None
+        peak = max(range(len(trace)), key=lambda i: trace[i][1])
+        seg.peak_force_n = trace[peak][1]
+        if seg.peak_force_n < self.min_peak_n or max(d for d, _ in trace) < self.min_depth_mm:
+            self.rejected += 1
+            return None
+        seg.depth_mm, seg.force_n = [d for d, _ in trace[:peak + 1]], [f for _, f in trace[:peak + 1]]
+        seg.unload_depth_mm, seg.unload_force_n = [d for d, _ in trace[peak + 1:]], [f for _, f in trace[peak + 1:]]
+        seg.xy_mm = (self._xy_sum[0] / len(trace), self._xy_sum[1] / len(trace))
+        seg.t_end_s = t_s
+        return seg
+
+
+class ManualSession:
+    """A servo task that commands no motion (gravity compensation and damping only) while a person
+    palpates, and collects the palpations the segmenter finds; done after duration_s."""
+
+    def __init__(self, segmenter: Segmenter, duration_s: float) -> None:
+        self.segmenter, self.duration_s = segmenter, duration_s
+        self.segments: list[Segment] = []
+        self._t0: float | None = None
+        self.done = False
+
+    def step(self, tick) -> Vec3:
+        if self._t0 is None:
+            self._t0 = tick.t_s
+        found = self.segmenter.push(tick.t_s, tick.tip_mm, tick.normal_force_n)
+        if found is not None:
+            self.segments.append(found)
+        self.done = tick.t_s - self._t0 >= self.duration_s
+        return tick.tip_mm  # the setpoint follows the hand: no spring pulls it anywhere
