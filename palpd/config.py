@@ -78,7 +78,7 @@ class PalpationSettings(_Section):
 class StiffnessSettings(_Section):
     # "select" lets the data choose by `criterion`; a model name fixes it ("linear" is the seed paper's §3.1).
     model: Literal["select", "linear", "linear-offset", "kelvin-voigt", "power", "exponential", "hunt-crossley"] = "select"
-    criterion: Literal["aicc", "bic"] = "aicc"
+    criterion: Literal["aicc", "bic"] = "bic"  # BIC: a 1 kHz trace has hundreds of samples, and AICc then admits noise-fitting terms
     reference_depth_mm: Annotated[float, Field(gt=0, le=30)] = 2.0  # where the one comparable stiffness is read
 
 
