@@ -115,9 +115,12 @@ class Learner:
         here = self.probed[-1] if self.probed else None
         return acquisition.best_candidate(score, self.grid_xy, self.blocked, here, self.travel_mm_per_palpation)
 
+    @property
+    def grid_area_mm2(self) -> float:
+        return self.cell_area_mm2 * len(self.grid_xy)
+
     def _sure_enough(self) -> bool:
-        total = self.cell_area_mm2 * len(self.grid_xy)
-        return self.ambiguous_area_mm2() <= self.settings.max_ambiguous_fraction * total
+        return self.ambiguous_area_mm2() <= self.settings.max_ambiguous_fraction * self.grid_area_mm2
 
     def lumps(self) -> list[LumpEstimate]:
         if self.levels is None or not self.levels.contrast:
