@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import importlib
 
-BENCHMARKS: list[str] = []
+BENCHMARKS: list[str] = ["learner", "tradeoff"]
 
 
 def add_parser(subparsers):
