@@ -102,9 +102,29 @@ class ScanSettings(_Section):
     min_contrast: Annotated[float, Field(gt=0)] = 0.3  # lump must be this much stiffer than tissue
 
 
+class LearnerSettings(_Section):
+    """The online learner (--strategy active and `palpd learner`)."""
+
+    confidence: Annotated[float, Field(gt=0.5, lt=1.0)] = 0.9  # P(lump) beyond c or 1 - c counts as sure
+    max_palpations: Annotated[int, Field(ge=1, le=10000)] = 40
+    max_ambiguous_fraction: Annotated[float, Field(ge=0, le=1)] = 0.01  # stop when this little is unsure
+    initial_points: Annotated[int, Field(ge=0, le=1000)] = 12  # space-filling first design
+    grid_points: Annotated[int, Field(ge=11, le=401)] = 121  # candidate grid, per side
+    min_spacing_mm: NonNegative = 1.5
+    length_scale_mm: tuple[Positive, Positive] = (1.5, 8.0)  # bounds of the kernel length scale
+    refit_growth: Annotated[float, Field(gt=1.0)] = 1.3  # refit hyperparameters when the data grew this much
+
+    @model_validator(mode="after")
+    def _bounds_in_order(self):
+        if self.length_scale_mm[0] > self.length_scale_mm[1]:
+            raise ValueError("length_scale_mm must be [low, high] with low <= high")
+        return self
+
+
 class BusSettings(_Section):
     events: str = "tcp://127.0.0.1:5555"
     commands: str = "tcp://127.0.0.1:5556"
+    learner_events: str = "tcp://127.0.0.1:5557"  # `palpd learner` publishes estimates here
 
 
 class Settings(_Section):
@@ -117,6 +137,7 @@ class Settings(_Section):
     stiffness: StiffnessSettings = StiffnessSettings()
     safety: SafetySettings = SafetySettings()
     scan: ScanSettings = ScanSettings()
+    learner: LearnerSettings = LearnerSettings()
     bus: BusSettings = BusSettings()
 
     @model_validator(mode="after")

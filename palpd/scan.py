@@ -61,14 +61,17 @@ class FixedPlan:
         """A fixed plan does not change with what it finds."""
 
 
-def plan(strategy: str, size_mm, max_palpations: int, seed: int) -> FixedPlan:
+def plan(strategy: str, size_mm, max_palpations: int, seed: int, settings=None):
+    """The planner for a strategy; `active` is the online learner (settings: palpd.config.Settings)."""
     if strategy == "raster":
         return FixedPlan(strategies.raster_points(size_mm, max_palpations))
     if strategy == "random":
         return FixedPlan(strategies.random_points(size_mm, max_palpations, seed))
     if strategy == "active":
-        raise UsageError("--strategy active needs the online learner, which this version does not have yet; "
-                         "use raster or random")
+        from palpd.config import Settings
+        from palpd.learner import ActivePlanner
+
+        return ActivePlanner(size_mm, settings or Settings(), max_palpations, seed)
     raise UsageError(f"unknown strategy {strategy!r}; choose from {', '.join(strategies.STRATEGIES)}")
 
 
@@ -115,8 +118,11 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     finally:
         servo.stop()
     good = [pr for pr in probes if pr.fit is not None]
-    lumps = estimate_lumps([pr.record.xy_mm for pr in good], [pr.stiffness_n_per_mm for pr in good],
-                           settings.scan.min_contrast) if good else []
+    if hasattr(planner, "lumps"):  # an adaptive planner keeps its own map of where the lumps are
+        lumps = planner.lumps()
+    else:
+        lumps = estimate_lumps([pr.record.xy_mm for pr in good], [pr.stiffness_n_per_mm for pr in good],
+                               settings.scan.min_contrast) if good else []
     return {
         "strategy": settings.scan.strategy,
         "seed": settings.scan.seed,

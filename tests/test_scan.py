@@ -114,9 +114,23 @@ def test_cli_scan_writes_report_and_plot(tmp_path, run_cli):
     assert png.startswith(b"\x89PNG") and len(png) > 20_000
 
 
-def test_cli_active_strategy_is_refused_clearly_for_now(run_cli):
-    result = run_cli("scan", "--scene", SCENES / "paper.toml", "--strategy", "active")
-    assert_one_line_error(result, "--strategy active", "raster or random")
+def test_cli_active_scan_with_defaults_finds_the_paper_lump_within_40_palpations(tmp_path, run_cli):
+    result = run_cli("scan", "--scene", SCENES / "paper.toml", "--strategy", "active", "--quiet",
+                     "--report", tmp_path / "r.json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert report["strategy"] == "active" and report["palpations"] <= 40
+    m = report["metrics"]
+    assert m["lumps_found"] == 1 and m["false_lumps"] == 0
+    assert m["max_center_error_mm"] <= 1.5 and m["max_radius_error_mm"] <= 1.5 and m["min_iou"] >= 0.8
+    (lump,) = report["lumps"]
+    assert 0 < lump["center_sd_mm"] < 5 and 0 < lump["radius_sd_mm"] < 5
+    assert lump["boundary_mm"][0] == lump["boundary_mm"][-1]
+
+
+def test_cli_confidence_out_of_range_is_one_line(run_cli):
+    result = run_cli("scan", "--scene", SCENES / "paper.toml", "--strategy", "active", "--confidence", "1.5")
+    assert_one_line_error(result, "learner.confidence")
 
 
 def test_cli_unwritable_report(tmp_path, run_cli):

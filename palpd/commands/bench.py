@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import importlib
 
-BENCHMARKS: list[str] = ["loop"]
+BENCHMARKS: list[str] = ["loop", "learner", "tradeoff"]
 
 
 def add_parser(subparsers):

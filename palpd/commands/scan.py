@@ -35,10 +35,13 @@ def run(args) -> int:
     settings = load_settings(args.config).updated(
         scan={"strategy": args.strategy, "max_palpations": args.max_palpations, "seed": args.seed},
         palpation={"depth_mm": args.depth_mm, "speed_mm_s": args.speed_mm_s},
+        learner={"confidence": args.confidence},
     )
     scene = load_scene(args.scene)
     s = settings.scan
-    planner = plan(s.strategy, scene.tissue.size_mm, s.max_palpations, s.seed)
+    # The active budget has its own default (learner.max_palpations): it stops on its own well before a raster's.
+    budget = args.max_palpations or (settings.learner.max_palpations if s.strategy == "active" else s.max_palpations)
+    planner = plan(s.strategy, scene.tissue.size_mm, budget, s.seed, settings)
     bench = open_simulated_bench(settings, scene, seed=s.seed, realtime=args.realtime)
     _say(args, f"scan of scene {scene.name!r}: {s.strategy}, up to {planner.expected_total} palpations, "
                f"depth {settings.palpation.depth_mm} mm at {settings.palpation.speed_mm_s} mm/s")

@@ -1,0 +1,22 @@
+"""palpd learner: the online learner as its own process on the bus."""
+from __future__ import annotations
+
+
+def add_parser(subparsers):
+    learner = subparsers.add_parser("learner", help="run the online learner as its own process (ZeroMQ)")
+    learner.add_argument("--config", metavar="FILE", help="settings (TOML); bus endpoints and learner section")
+    return learner
+
+
+def run(args) -> int:
+    import zmq
+
+    from palpd.config import load_settings
+    from palpd.errors import ConfigError
+    from palpd.learner.service import run_service
+
+    settings = load_settings(args.config)
+    try:
+        return run_service(settings)
+    except zmq.ZMQError as exc:
+        raise ConfigError(f"bus: cannot use {settings.bus.events} / {settings.bus.learner_events}: {exc}") from None

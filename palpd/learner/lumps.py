@@ -1,0 +1,127 @@
+"""Lumps from the learner's map: connected regions where P(lump) > 0.5.
+
+Each region that an observed stiff point supports (the model alone never makes
+a lump) becomes a lump with its 50 % boundary as a closed polygon, a centre and
+radius from a circle fitted to that boundary (only its part inside the palpable
+area, so a lump cut by the edge keeps its true radius), and their uncertainties
+from how well the boundary is pinned down: σ/|∇μ| across it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import contourpy
+import numpy as np
+from scipy import ndimage
+
+from palpd.estimate import LumpEstimate
+from palpd.learner.threshold import EIGHT_CONNECTED
+
+MIN_REGION_CELLS = 2
+
+
+@dataclass(frozen=True)
+class Map:
+    xs: np.ndarray      # grid columns (mm)
+    ys: np.ndarray      # grid rows (mm)
+    mean: np.ndarray    # (ny, nx) posterior mean stiffness
+    std: np.ndarray     # (ny, nx) posterior sd
+    tau: np.ndarray     # (ny, nx) threshold
+    length_mm: float    # kernel length scale: how far one probe informs
+
+    @property
+    def cell_mm(self) -> float:
+        return float(self.xs[1] - self.xs[0]) if len(self.xs) > 1 else 1.0
+
+
+def find_lumps(m: Map, stiff_xy: np.ndarray) -> list[LumpEstimate]:
+    """Lumps where the map says P > 0.5, each backed by at least one observed stiff point."""
+    labels, count = ndimage.label(m.mean > m.tau, EIGHT_CONNECTED)
+    supported = _supported_labels(m, labels, stiff_xy)
+    lumps = []
+    for label in range(1, count + 1):
+        region = labels == label
+        if label not in supported or np.count_nonzero(region) < MIN_REGION_CELLS:
+            continue
+        lump = _one_lump(m, region, (labels > 0) & ~region)
+        if lump is not None:
+            lumps.append(lump)
+    return lumps
+
+
+def _supported_labels(m: Map, labels: np.ndarray, stiff_xy: np.ndarray) -> set[int]:
+    near = ndimage.grey_dilation(labels, footprint=np.ones((5, 5), dtype=bool))  # a probe a cell or two outside
+    cols = np.clip(np.rint((stiff_xy[:, 0] - m.xs[0]) / m.cell_mm).astype(int), 0, len(m.xs) - 1)
+    rows = np.clip(np.rint((stiff_xy[:, 1] - m.ys[0]) / m.cell_mm).astype(int), 0, len(m.ys) - 1)
+    return {int(v) for v in near[rows, cols] if v > 0}
+
+
+def _one_lump(m: Map, region: np.ndarray, others: np.ndarray) -> LumpEstimate | None:
+    polygon = _boundary(m, region, others)
+    if polygon is None:
+        return None
+    inside = _off_edge(m, polygon[:-1])
+    fit_points = inside if len(inside) >= 5 else polygon[:-1]
+    centre, radius, jac = _circle_fit(fit_points)
+    centre_sd, radius_sd = _fit_uncertainty(m, fit_points, jac, radius)
+    return LumpEstimate((float(centre[0]), float(centre[1])), float(radius), centre_sd, radius_sd,
+                        polygon.tolist())
+
+
+def _boundary(m: Map, region: np.ndarray, others: np.ndarray) -> np.ndarray | None:
+    """The region's μ = τ contour, closed along the area's edge by a soft frame around the grid."""
+    grow = int(math.ceil(2.0 * m.length_mm / m.cell_mm)) + 1
+    own = ndimage.binary_dilation(region, EIGHT_CONNECTED, iterations=grow) & ~others
+    z = np.where(own, m.mean - m.tau, -1.0)
+    z = np.pad(z, 1, constant_values=-1.0)
+    eps = 1e-6 * m.cell_mm  # the frame sits just outside the area, so the polygon follows its edge
+    xs = np.concatenate([[m.xs[0] - eps], m.xs, [m.xs[-1] + eps]])
+    ys = np.concatenate([[m.ys[0] - eps], m.ys, [m.ys[-1] + eps]])
+    lines = contourpy.contour_generator(xs, ys, z).lines(0.0)
+    if not lines:
+        return None
+    line = max(lines, key=len)
+    if len(line) < 4:
+        return None
+    if not np.array_equal(line[0], line[-1]):
+        line = np.vstack([line, line[:1]])
+    return np.clip(line, [m.xs[0], m.ys[0]], [m.xs[-1], m.ys[-1]])
+
+
+def _off_edge(m: Map, points: np.ndarray) -> np.ndarray:
+    margin = 0.5 * m.cell_mm
+    keep = ((points[:, 0] > m.xs[0] + margin) & (points[:, 0] < m.xs[-1] - margin)
+            & (points[:, 1] > m.ys[0] + margin) & (points[:, 1] < m.ys[-1] - margin))
+    return points[keep]
+
+
+def _circle_fit(points: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+    """Algebraic (Kåsa) circle fit; returns centre, radius and the geometric residuals' Jacobian."""
+    a = np.column_stack([2.0 * points, np.ones(len(points))])
+    b = (points**2).sum(axis=1)
+    (cx, cy, c), *_ = np.linalg.lstsq(a, b, rcond=None)
+    centre = np.array([cx, cy])
+    radius = math.sqrt(max(c + cx * cx + cy * cy, 0.0))
+    offsets = points - centre
+    dist = np.maximum(np.linalg.norm(offsets, axis=1), 1e-9)
+    jac = np.column_stack([-offsets / dist[:, None], -np.ones(len(points))])
+    return centre, radius, jac
+
+
+def _fit_uncertainty(m: Map, points: np.ndarray, jac: np.ndarray, radius: float) -> tuple[float, float]:
+    """Centre and radius sd from the boundary's position sd, δ = σ / |∇(μ − τ)|, along it."""
+    gy, gx = np.gradient(m.mean - m.tau, m.cell_mm)
+    cols = np.clip(np.rint((points[:, 0] - m.xs[0]) / m.cell_mm).astype(int), 0, len(m.xs) - 1)
+    rows = np.clip(np.rint((points[:, 1] - m.ys[0]) / m.cell_mm).astype(int), 0, len(m.ys) - 1)
+    slope = np.maximum(np.hypot(gx[rows, cols], gy[rows, cols]), 1e-12)
+    delta2 = float(np.mean(np.minimum(m.std[rows, cols] / slope, 2.0 * radius + m.cell_mm) ** 2))
+    # Neighbouring vertices share their probes: about one independent look per length scale of boundary.
+    independent = max(2.0 * math.pi * radius / m.length_mm, 1.0)
+    try:
+        cov = np.linalg.inv(jac.T @ jac) * len(points) * delta2 / independent
+    except np.linalg.LinAlgError:
+        cov = np.eye(3) * delta2
+    floor = m.cell_mm / math.sqrt(12.0)  # the grid cannot say better than this
+    centre_sd = math.sqrt(max(0.5 * (cov[0, 0] + cov[1, 1]), 0.0))
+    return max(centre_sd, floor), max(math.sqrt(max(cov[2, 2], 0.0)), floor)

@@ -1,0 +1,94 @@
+"""The learner as its own process: SUB `stiffness` from the daemon's bus, PUB `estimate` (with the next probe).
+
+The estimate socket is an XPUB so a subscriber that joins late gets the latest
+estimate at once instead of waiting for the next stiffness point.
+"""
+from __future__ import annotations
+
+import signal
+import time
+
+import zmq
+from pydantic import ValidationError
+
+from drivers.errors import describe_validation_error
+from palpd.bus.messages import Estimate, LumpMsg, Stiffness
+from palpd.learner.model import Learner
+from palpd.learner.planner import palpation_time_s
+
+POLL_MS = 200
+
+
+class LearnerService:
+    def __init__(self, settings, context: zmq.Context | None = None) -> None:
+        self.settings = settings
+        p = settings.palpation
+        self.learner = Learner(settings.tissue.size_mm, settings.learner, settings.scan.min_contrast,
+                               settings.scan.seed, p.travel_speed_mm_s * palpation_time_s(p))
+        self.context = context or zmq.Context.instance()
+        self.sub = self.context.socket(zmq.SUB)
+        self.sub.setsockopt(zmq.LINGER, 0)
+        self.sub.setsockopt(zmq.SUBSCRIBE, b"stiffness")
+        self.sub.connect(settings.bus.events)
+        self.pub = self.context.socket(zmq.XPUB)
+        self.pub.setsockopt(zmq.LINGER, 0)
+        self.pub.bind(settings.bus.learner_events)
+        self.seq = 0
+        self.latest = self._estimate()
+        self.running = True
+
+    def serve(self) -> None:
+        poller = zmq.Poller()
+        poller.register(self.sub, zmq.POLLIN)
+        poller.register(self.pub, zmq.POLLIN)
+        while self.running:
+            for sock, _ in poller.poll(POLL_MS):
+                if sock is self.pub:
+                    self._on_subscription(self.pub.recv())
+                else:
+                    self._on_stiffness(self.sub.recv_multipart())
+
+    def close(self) -> None:
+        self.sub.close()
+        self.pub.close()
+
+    def _on_subscription(self, frame: bytes) -> None:
+        if frame[:1] == b"\x01":  # a new subscriber: give it the latest estimate now
+            self._publish(self.latest)
+
+    def _on_stiffness(self, frames: list[bytes]) -> None:
+        try:
+            msg = Stiffness.model_validate_json(frames[-1])
+        except ValidationError as exc:
+            print(f"palpd learner: {describe_validation_error('stiffness message', exc)}", flush=True)
+            return
+        self.learner.observe(msg.xy_mm, msg.stiffness_n_per_mm, msg.stiffness_sd_n_per_mm)
+        self.latest = self._estimate(msg.t)
+        self._publish(self.latest)
+
+    def _estimate(self, t: float | None = None) -> Estimate:
+        nxt = self.learner.next_probe()
+        self.seq += 1
+        return Estimate(seq=self.seq, t=time.time() if t is None else t, points=self.learner.points,
+                        lumps=[LumpMsg(**lump.as_dict()) for lump in self.learner.lumps()],
+                        next_probe_mm=nxt, done=nxt is None, ambiguous_area_mm2=self.learner.ambiguous_area_mm2())
+
+    def _publish(self, estimate: Estimate) -> None:
+        self.pub.send_multipart([b"estimate", estimate.model_dump_json().encode()])
+
+
+def run_service(settings) -> int:
+    service = LearnerService(settings)
+
+    def stop(*_):
+        service.running = False
+
+    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, stop)
+    print(f"palpd learner: stiffness from {settings.bus.events}, estimates on {settings.bus.learner_events}",
+          flush=True)
+    try:
+        service.serve()
+    finally:
+        service.close()
+    return 0
