@@ -42,9 +42,16 @@ def open_simulated_bench(settings, scene, seed: int = 0, realtime: bool = False)
     settings = simulated_settings(settings, scene)
     clock = RealClock() if realtime else VirtualClock()
     world = drivers.load_backend("drivers.sim.world", "SimWorld")(scene, clock, seed=seed)
-    robot = drivers.open_robot(settings.robot.url, world=world)
-    sensor = drivers.open_sensor(settings.sensor.backend, world=world)
+    # The robot talks the bridge protocol to a simulated bridge, the sensor goes through the DAQ layer.
+    robot = drivers.open_robot(settings.robot.url, world=world, **_robot_options(settings, clock))
+    sensor = drivers.open_sensor(settings.sensor.backend, world=world, clock=clock)
     return _assemble(settings, robot, sensor, clock, world)
+
+
+def _robot_options(settings, clock) -> dict:
+    robot = settings.robot
+    return {"clock": clock, "watchdog_s": robot.watchdog_s, "timeout_s": robot.timeout_s,
+            "current_limit_a": robot.current_limit_a}
 
 
 def _assemble(settings, robot, sensor, clock, world=None) -> Bench:

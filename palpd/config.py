@@ -28,6 +28,8 @@ class _Section(BaseModel):
 class RobotSettings(_Section):
     url: str = "sim://"
     current_limit_a: Annotated[float, Field(gt=0, le=5.5)] = 5.5  # the RE25's stall current
+    watchdog_s: Annotated[float, Field(ge=0.002, le=60)] = 0.25  # the bridge cuts the motors after this silence
+    timeout_s: Annotated[float, Field(gt=0, le=10)] = 0.05  # no answer from the bridge in this time: a fault
 
 
 class SensorSettings(_Section):

@@ -8,7 +8,7 @@ from drivers.sim.world import NO_FORCE, SimWorld
 
 
 class SimRobot(Robot):
-    def __init__(self, url: str = "sim://", world: SimWorld | None = None) -> None:
+    def __init__(self, url: str = "sim://", world: SimWorld | None = None, **_ignored) -> None:
         if world is None:
             raise DriverInitializationError(f"{url}: the simulated robot needs a simulated world (a scene)")
         self.world = world
@@ -39,7 +39,7 @@ class SimRobot(Robot):
 
 
 class SimForceSensor(ForceSensor):
-    def __init__(self, world: SimWorld | None = None) -> None:
+    def __init__(self, url: str = "sim-direct", world: SimWorld | None = None, **_ignored) -> None:
         if world is None:
             raise DriverInitializationError("sim force sensor: needs a simulated world (a scene)")
         self.world = world

@@ -48,10 +48,17 @@ class SimWorld:
         return model.angles_to_counts(tuple(self.arm.q))  # type: ignore[arg-type]
 
     def sensor_sample(self) -> ForceSample:
+        return self.sensor.sample(self.t_s, self._force_on_sensor())
+
+    def sensor_wrench(self) -> list[float]:
+        """The load on the Nano17 (N, N*mm) with its bias and noise, before any DAQ."""
+        return self.sensor.wrench(self._force_on_sensor())
+
+    def _force_on_sensor(self) -> model.Vec3:
         force = self.contact_force_robot
         if self.scene.sensor.tilt:
             force = model.base_to_tilt(tuple(self.arm.q), self.q_aligned, force)  # type: ignore[arg-type]
-        return self.sensor.sample(self.t_s, self.frame.vector_from_robot(force))
+        return self.frame.vector_from_robot(force)
 
     # -- physics -----------------------------------------------------------------------------
     def felt_stiffness(self, x_mm: float, y_mm: float) -> float:
