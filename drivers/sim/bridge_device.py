@@ -28,6 +28,14 @@ class BridgeDevice:
         self.stalled = False  # a hung bridge: swallows frames, answers nothing
         self._last_host_frame_s: float | None = None
         self._seq = 0
+        self.resting = True  # in its home stand until first enabled, as the real arm is parked at power-up
+
+    def advance(self, now_s: float) -> None:
+        """Physics up to now; while resting in the stand the arm stays at home and time just passes."""
+        if self.resting:
+            self.world.t_s = now_s
+        else:
+            self.world.advance_to(now_s)
 
     def handle(self, data: bytes) -> bytes:
         """Bytes from the host in, reply bytes out (one STATE per valid host frame)."""
@@ -60,7 +68,8 @@ class BridgeDevice:
             return
         if self.world.estop:
             return
-        self.world.advance_to(self.world.clock.now())
+        self.advance(self.world.clock.now())
+        self.resting = False
         self.world.amplifiers_on = True
         self.world.currents_a = tuple(ma / 1000.0 for ma in command.currents_ma)
 
@@ -70,7 +79,7 @@ class BridgeDevice:
 
     def _state(self, ack_seq: int) -> bytes:
         world = self.world
-        world.advance_to(world.clock.now())
+        self.advance(world.clock.now())
         status = world.status() | (STATUS_WATCHDOG_TRIPPED if self.tripped else 0)
         self._seq += 1
         state = codec.State(world.encoder_counts(), status, int(world.t_s * 1e6), ack_seq,

@@ -122,7 +122,7 @@ class SimulatorHost:
         for fd in readable:
             owners[id(fd)][1].on_readable(fd)
         now = self.world.clock.now()
-        self.world.advance_to(now)
+        self.device.advance(now)
         self.device.check_watchdog(now)
         for endpoint in self.endpoints:
             if hasattr(endpoint, "on_tick"):
