@@ -12,12 +12,20 @@ from urllib.parse import urlsplit
 from drivers.errors import DriverError, DriverInitializationError, DriverOperationError, DriverTimeoutError
 from drivers.interfaces import ForceSample, ForceSensor, JointState, Robot
 
+from drivers.transport import TRANSPORTS
+
 # scheme/name -> (module, factory). Imported only when asked for.
+# Every transport carries the Phantom bridge protocol (sim:// included); "sim-direct" skips the codec
+# and calls the simulator directly, kept only to measure what the codec costs.
 ROBOT_BACKENDS: dict[str, tuple[str, str]] = {
-    "sim": ("drivers.sim.backend", "SimRobot"),
+    **{scheme: ("drivers.phantom.bridge", "open_bridge_robot") for scheme in TRANSPORTS},
+    "sim-direct": ("drivers.sim.backend", "SimRobot"),
 }
 SENSOR_BACKENDS: dict[str, tuple[str, str]] = {
-    "sim": ("drivers.sim.backend", "SimForceSensor"),
+    "sim": ("drivers.sim.daq", "open_sim_sensor"),
+    "netft": ("drivers.nano17.netft", "open_netft_sensor"),
+    "nidaqmx": ("drivers.nano17.nidaq", "open_nidaqmx_sensor"),
+    "sim-direct": ("drivers.sim.backend", "SimForceSensor"),
 }
 
 __all__ = [
@@ -45,10 +53,11 @@ def open_robot(url: str, **options) -> Robot:
     return load_backend(*ROBOT_BACKENDS[scheme])(url, **options)
 
 
-def open_sensor(name: str, **options) -> ForceSensor:
-    """Open the force sensor backend called name, e.g. ``sim``."""
-    if name not in SENSOR_BACKENDS:
+def open_sensor(url: str, **options) -> ForceSensor:
+    """Open the force sensor url names: ``sim``, ``netft://HOST[:PORT]``, ``nidaqmx://Dev1/ai0:5``."""
+    scheme = urlsplit(url).scheme or url
+    if scheme not in SENSOR_BACKENDS:
         raise DriverInitializationError(
-            f"no force sensor backend {name!r}; known: {', '.join(sorted(SENSOR_BACKENDS))}"
+            f"no force sensor backend for {url!r}; known: {', '.join(sorted(SENSOR_BACKENDS))}"
         )
-    return load_backend(*SENSOR_BACKENDS[name])(**options)
+    return load_backend(*SENSOR_BACKENDS[scheme])(url, **options)

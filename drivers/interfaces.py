@@ -18,6 +18,7 @@ STATUS_AMPLIFIERS_ON = 0x10
 SAMPLE_SATURATED = 0x01
 SAMPLE_INVALID = 0x02
 SAMPLE_STALE = 0x04
+SAMPLE_GAP = 0x08  # samples were lost just before this one (a sequence gap); counted, not a reason to stop
 
 
 @dataclass(slots=True)
@@ -26,6 +27,7 @@ class JointState:
     counts: tuple[int, int, int]
     angles_rad: tuple[float, float, float]
     status: int = 0
+    device_t_s: float | None = None  # the device's own clock, when it reports one (t_s is the host's)
 
 
 @dataclass(slots=True)
@@ -36,6 +38,7 @@ class ForceSample:
     force_n: tuple[float, float, float]
     torque_n_mm: tuple[float, float, float]
     flags: int = 0
+    status: int = 0  # the device's own status word, passed on as is (e.g. Net F/T RDT status)
 
 
 class Robot(abc.ABC):

@@ -28,13 +28,47 @@ class Bench:
     world: object = None  # the simulated world, when there is one
 
 
+def open_bench(settings, scene, seed: int = 0, realtime: bool = False) -> Bench:
+    """The simulated bench in this process for sim://, otherwise the hardware (or a `palpd simulate`) at the URLs."""
+    if settings.robot.url.startswith("sim"):
+        return open_simulated_bench(settings, scene, seed, realtime)
+    return open_hardware_bench(settings.updated(tissue=_placement(scene), sensor=_mount(scene)), scene)
+
+
+def open_hardware_bench(settings, scene=None) -> Bench:
+    """Robot and sensor over their transports, on the wall clock; the scene (if any) only says where the tissue is."""
+    clock = RealClock()
+    sensor_settings = settings.sensor
+    if sensor_settings.backend.startswith("sim"):
+        raise ConfigError(f"sensor.backend {sensor_settings.backend!r} needs the simulated robot; "
+                          f"robot.url is {settings.robot.url!r}")
+    robot = drivers.open_robot(settings.robot.url, **_robot_options(settings, clock))
+    try:
+        sensor = drivers.open_sensor(
+            sensor_settings.backend, clock=clock, timeout_s=sensor_settings.timeout_s,
+            stale_after_s=sensor_settings.stale_after_s, calibration_file=sensor_settings.calibration,
+            counts_per_force=sensor_settings.counts_per_force, counts_per_torque=sensor_settings.counts_per_torque)
+    except drivers.DriverError:
+        robot.close()
+        raise
+    return _assemble(settings, robot, sensor, clock)
+
+
+def _mount(scene) -> dict:
+    return {"mount": "link2" if scene.sensor.tilt else "level"}
+
+
+def _placement(scene) -> dict:
+    return {"origin_mm": scene.placement.origin_mm, "size_mm": scene.tissue.size_mm}
+
+
 def simulated_settings(settings, scene):
     """Settings as they must be for a simulated bench: the scene says where the tissue is."""
     if not settings.robot.url.startswith("sim"):
         raise ConfigError(f"robot.url is {settings.robot.url!r}, but a scene needs the simulated robot (sim://)")
     return settings.updated(
-        tissue={"origin_mm": scene.placement.origin_mm, "size_mm": scene.tissue.size_mm},
-        sensor={"mount": "link2" if scene.sensor.tilt else "level"},
+        tissue=_placement(scene),
+        sensor=_mount(scene),
     )
 
 
@@ -42,9 +76,16 @@ def open_simulated_bench(settings, scene, seed: int = 0, realtime: bool = False)
     settings = simulated_settings(settings, scene)
     clock = RealClock() if realtime else VirtualClock()
     world = drivers.load_backend("drivers.sim.world", "SimWorld")(scene, clock, seed=seed)
-    robot = drivers.open_robot(settings.robot.url, world=world)
-    sensor = drivers.open_sensor(settings.sensor.backend, world=world)
+    # The robot talks the bridge protocol to a simulated bridge, the sensor goes through the DAQ layer.
+    robot = drivers.open_robot(settings.robot.url, world=world, **_robot_options(settings, clock))
+    sensor = drivers.open_sensor(settings.sensor.backend, world=world, clock=clock)
     return _assemble(settings, robot, sensor, clock, world)
+
+
+def _robot_options(settings, clock) -> dict:
+    robot = settings.robot
+    return {"clock": clock, "watchdog_s": robot.watchdog_s, "timeout_s": robot.timeout_s,
+            "current_limit_a": robot.current_limit_a}
 
 
 def _assemble(settings, robot, sensor, clock, world=None) -> Bench:

@@ -14,7 +14,7 @@ from drivers.errors import DriverError
 from palpd.errors import EXIT_FAILURE, PalpdError
 
 # Order is the order of `palpd --help`.
-COMMAND_MODULES = ["scan", "learner", "dataset", "study", "bench"]
+COMMAND_MODULES = ["scan", "simulate", "learner", "dataset", "study", "calibration", "bench"]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -28,13 +28,20 @@ class _Section(BaseModel):
 class RobotSettings(_Section):
     url: str = "sim://"
     current_limit_a: Annotated[float, Field(gt=0, le=5.5)] = 5.5  # the RE25's stall current
+    watchdog_s: Annotated[float, Field(ge=0.002, le=60)] = 0.25  # the bridge cuts the motors after this silence
+    timeout_s: Annotated[float, Field(gt=0, le=10)] = 0.05  # no answer from the bridge in this time: a fault
 
 
 class SensorSettings(_Section):
-    backend: str = "sim"
+    backend: str = "sim"  # sim | netft://HOST[:PORT] | nidaqmx://Dev1/ai0:5
     # "link2": fixed to the arm's last link, so its axes tilt with the arm (the seed paper's bench);
     # "level": held level by a gimbal. A simulated scan takes this from the scene's sensor.tilt.
     mount: Literal["link2", "level"] = "link2"
+    calibration: str = ""  # the sensor's ATI .cal file (needed by nidaqmx; the simulator brings its own)
+    timeout_s: Annotated[float, Field(gt=0, le=10)] = 0.05  # no new sample for this long: stalled or unplugged
+    stale_after_s: Annotated[float, Field(gt=0, le=10)] = 0.02  # a sample older than this is flagged stale
+    counts_per_force: Positive = 1_000_000.0  # Net F/T counts per N
+    counts_per_torque: Positive = 1_000_000.0  # Net F/T counts per N*m
 
 
 class TissueSettings(_Section):

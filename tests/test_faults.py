@@ -50,7 +50,7 @@ def freeze(b): b.world.faults.sensor_frozen = True
 def nan(b): b.world.faults.nan_samples = True
 def jump(b): b.world.faults.encoder_jump_counts = (0, 400, 0)
 def amplifier(b): b.world.faults.amplifier_fault = True
-def estop_button(b): b.servo.robot.press_estop()
+def estop_button(b): b.world.press_estop()
 def estop_command(b): b.servo.request_estop()
 def loop_stall(b): stall(b.clock, 0.02)
 

@@ -178,3 +178,42 @@ def tilt_to_base(q: Vec3, q_aligned: Vec3, v: Vec3) -> Vec3:
 def base_to_tilt(q: Vec3, q_aligned: Vec3, v: Vec3) -> Vec3:
     """Inverse of tilt_to_base."""
     return _times(link2_rotation(q_aligned), _transpose_times(link2_rotation(q), v))
+
+
+# -- torque and thermal limits ---------------------------------------------------------------
+PEAK_DURATION_S = 2.0  # how long a motor may carry the peak current from cold before I2t limits it
+
+
+def torque_limits_nm(joint: int) -> tuple[float, float]:
+    """(nominal, peak) joint torque: what the motor carries continuously and what it gives for a moment."""
+    return NOMINAL_CURRENT_A * torque_per_amp(joint), PEAK_CURRENT_A * torque_per_amp(joint)
+
+
+class ThermalLimit:
+    """I2t protection: currents above nominal heat the windings; once the budget is spent, nominal only.
+
+    The budget (peak^2 - nominal^2) * PEAK_DURATION_S is what the motor may absorb above its
+    continuous rating; running below nominal cools it at the same rate.
+    """
+
+    def __init__(self, nominal_a: float = NOMINAL_CURRENT_A, peak_a: float = PEAK_CURRENT_A,
+                 peak_duration_s: float = PEAK_DURATION_S) -> None:
+        self.nominal_a, self.peak_a = nominal_a, peak_a
+        self.budget_a2s = (peak_a * peak_a - nominal_a * nominal_a) * peak_duration_s
+        self.heat_a2s = [0.0, 0.0, 0.0]
+
+    def limit(self, currents_a: Vec3, dt_s: float) -> Vec3:
+        """Clamp each current to the peak, or to nominal once that joint's budget is spent; then account."""
+        out = []
+        for joint, amps in enumerate(currents_a):
+            cap = self.nominal_a if self.heat_a2s[joint] >= self.budget_a2s else self.peak_a
+            if amps != amps:  # NaN: no current rather than an undefined one
+                amps = 0.0
+            amps = cap if amps > cap else -cap if amps < -cap else amps
+            heat = self.heat_a2s[joint] + (amps * amps - self.nominal_a * self.nominal_a) * dt_s
+            self.heat_a2s[joint] = min(max(heat, 0.0), self.budget_a2s)
+            out.append(amps)
+        return tuple(out)  # type: ignore[return-value]
+
+    def limited(self) -> bool:
+        return any(h >= self.budget_a2s for h in self.heat_a2s)

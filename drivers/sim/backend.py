@@ -9,7 +9,7 @@ from drivers.sim.world import NO_FORCE, SimWorld
 
 
 class SimRobot(Robot):
-    def __init__(self, url: str = "sim://", world: SimWorld | None = None) -> None:
+    def __init__(self, url: str = "sim://", world: SimWorld | None = None, **_ignored) -> None:
         if world is None:
             raise DriverInitializationError(f"{url}: the simulated robot needs a simulated world (a scene)")
         self.world = world
@@ -34,14 +34,13 @@ class SimRobot(Robot):
             self.world.currents_a = currents_a
 
     def press_estop(self) -> None:
-        """The simulated red button: amplifiers drop at once, as on the real bench."""
-        self.world.estop = True
-        self.disable()
+        self.world.press_estop()
 
 
 class SimForceSensor(ForceSensor):
     force_range_n = FORCE_RANGE_N
-    def __init__(self, world: SimWorld | None = None) -> None:
+
+    def __init__(self, url: str = "sim-direct", world: SimWorld | None = None, **_ignored) -> None:
         if world is None:
             raise DriverInitializationError("sim force sensor: needs a simulated world (a scene)")
         self.world = world

@@ -40,6 +40,7 @@ class SimFaults:
         self.amplifier_fault = False
         self.sensor_drift_n_per_s = (0.0, 0.0, 0.0)  # a slowly wandering bias, as strain gauges warm up
         self._frozen_sample: ForceSample | None = None
+        self._frozen_reading: tuple[float, list[float]] | None = None
 
     def sample(self, fresh: ForceSample) -> ForceSample:
         if self.sensor_frozen:
@@ -55,6 +56,20 @@ class SimFaults:
         if self.nan_samples:
             fresh = replace(fresh, force_n=(math.nan, math.nan, math.nan))
         return fresh
+
+    def wrench(self, t_s: float, load: list[float]) -> tuple[float, list[float]]:
+        """The same faults at the gauges, for the paths that carry raw readings (DAQ, Net F/T)."""
+        if self.sensor_frozen:
+            if self._frozen_reading is None:
+                self._frozen_reading = (t_s, load)
+            return self._frozen_reading
+        self._frozen_reading = None
+        drift = self.sensor_drift_n_per_s
+        if drift != (0.0, 0.0, 0.0):
+            load = [load[0] + drift[0] * t_s, load[1] + drift[1] * t_s, load[2] + drift[2] * t_s, *load[3:]]
+        if self.nan_samples:
+            load = [math.nan] * len(load)
+        return t_s, load
 
     def counts(self, counts: tuple[int, int, int]) -> tuple[int, int, int]:
         j = self.encoder_jump_counts

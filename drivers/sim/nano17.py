@@ -18,18 +18,25 @@ class SimNano17:
         self._rng = rng
         self._bias = tuple(rng.uniform(-bias_n, bias_n) for _ in range(6))
 
-    def sample(self, t_s: float, force_sensor_frame: tuple[float, float, float]) -> ForceSample:
+    def wrench(self, force_sensor_frame: tuple[float, float, float]) -> list[float]:
+        """What the gauges feel, as (Fx, Fy, Fz) N and (Tx, Ty, Tz) N*mm: true load, bias and noise."""
         fx, fy, fz = force_sensor_frame
         # The probe tip lies TOOL_LENGTH_MM below the sensor, so a lateral force makes a moment.
         true = (fx, fy, fz, TOOL_LENGTH_MM * fy, -TOOL_LENGTH_MM * fx, 0.0)
-        values, flags = [], 0
+        values = [true[axis] + self._bias[axis] for axis in range(6)]
+        if self.noise_n:
+            for axis in range(6):
+                values[axis] += self._rng.gauss(0.0, self.noise_n if axis < 3 else self.noise_n * TOOL_LENGTH_MM)
+        return values
+
+    def sample(self, t_s: float, force_sensor_frame: tuple[float, float, float]) -> ForceSample:
+        """The wrench as an ideal DAQ in force units would give it: clipped to the range, quantised."""
+        values, flags = self.wrench(force_sensor_frame), 0
         for axis in range(6):
-            value = true[axis] + self._bias[axis]
-            if self.noise_n:
-                value += self._rng.gauss(0.0, self.noise_n if axis < 3 else self.noise_n * TOOL_LENGTH_MM)
+            value = values[axis]
             limit = FORCE_RANGE_N[axis] if axis < 3 else TORQUE_RANGE_N_MM
             if abs(value) > limit:
                 value, flags = (limit if value > 0 else -limit), flags | SAMPLE_SATURATED
             step = FORCE_STEP_N if axis < 3 else TORQUE_STEP_N_MM
-            values.append(round(value / step) * step)
+            values[axis] = round(value / step) * step
         return ForceSample(t_s, (values[0], values[1], values[2]), (values[3], values[4], values[5]), flags)

@@ -44,6 +44,12 @@ class SimWorld:
             self._step(PHYSICS_STEP_S)
             self.t_s += PHYSICS_STEP_S
 
+    def press_estop(self) -> None:
+        """The red button on the bench: the amplifiers drop at once, whatever the host says."""
+        self.estop = True
+        self.amplifiers_on = False
+        self.currents_a = NO_FORCE
+
     def status(self) -> int:
         bits = (STATUS_AMPLIFIERS_ON if self.amplifiers_on else 0) | (STATUS_ESTOP if self.estop else 0)
         return self.faults.status(bits)
@@ -52,10 +58,24 @@ class SimWorld:
         return self.faults.counts(model.angles_to_counts(tuple(self.arm.q)))  # type: ignore[arg-type]
 
     def sensor_sample(self) -> ForceSample:
+        """What an ideal DAQ in force units would report (the sim-direct path, no wire format)."""
+        return self.faults.sample(self.sensor.sample(self.t_s, self._force_on_sensor()))
+
+    def sensor_reading(self) -> tuple[float, list[float]]:
+        """(time of the reading, load on the Nano17 in N and N*mm with its bias and noise), before any DAQ.
+
+        A frozen sensor keeps handing out its last reading, time and all.
+        """
+        return self.faults.wrench(self.t_s, self.sensor.wrench(self._force_on_sensor()))
+
+    def sensor_wrench(self) -> list[float]:
+        return self.sensor_reading()[1]
+
+    def _force_on_sensor(self) -> model.Vec3:
         force = self.contact_force_robot
         if self.scene.sensor.tilt:
             force = model.base_to_tilt(tuple(self.arm.q), self.q_aligned, force)  # type: ignore[arg-type]
-        return self.faults.sample(self.sensor.sample(self.t_s, self.frame.vector_from_robot(force)))
+        return self.frame.vector_from_robot(force)
 
     # -- physics -----------------------------------------------------------------------------
     def felt_stiffness(self, x_mm: float, y_mm: float) -> float:

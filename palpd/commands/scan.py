@@ -5,7 +5,7 @@ import sys
 
 from drivers.sim.scene import load_scene, truth_lumps
 from palpd import metrics
-from palpd.bench import open_simulated_bench
+from palpd.bench import open_bench
 from palpd.config import load_settings
 from palpd.errors import EXIT_FAILURE, UsageError
 from palpd.files import write_json
@@ -42,7 +42,7 @@ def run(args) -> int:
     # The active budget has its own default (learner.max_palpations): it stops on its own well before a raster's.
     budget = args.max_palpations or (settings.learner.max_palpations if s.strategy == "active" else s.max_palpations)
     planner = plan(s.strategy, scene.tissue.size_mm, budget, s.seed, settings)
-    bench = open_simulated_bench(settings, scene, seed=s.seed, realtime=args.realtime)
+    bench = open_bench(settings, scene, seed=s.seed, realtime=args.realtime)
     _say(args, f"scan of scene {scene.name!r}: {s.strategy}, up to {planner.expected_total} palpations, "
                f"depth {settings.palpation.depth_mm} mm at {settings.palpation.speed_mm_s} mm/s")
     report = {"scene": scene.name, **run_scan(bench, settings, planner, _progress_printer(args))}

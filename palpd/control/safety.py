@@ -80,8 +80,10 @@ class SafetySupervisor:
 
     def _sample(self, tick) -> Fault | None:
         sample = tick.sample
-        if sample.flags & (SAMPLE_INVALID | SAMPLE_STALE) or not all(map(math.isfinite, tick.force_tissue_n)):
+        if sample.flags & SAMPLE_INVALID or not all(map(math.isfinite, tick.force_tissue_n)):
             return Fault("invalid_sample", "force sample invalid (NaN or flagged)", tick.t_s)
+        if sample.flags & SAMPLE_STALE:
+            return Fault("stale_sample", "force sensor gives no new readings (sensor frozen?)", tick.t_s)
         if tick.t_s - sample.t_s > self.max_sample_age_s:
             return Fault("stale_sample", f"force sample is {1000 * (tick.t_s - sample.t_s):.1f} ms old "
                          "(sensor frozen?)", tick.t_s)

@@ -52,7 +52,8 @@ class ServoLoop:
         self.robot, self.sensor, self.clock = robot, sensor, clock
         self.frame, self.controller, self.supervisor, self.forces = frame, controller, supervisor, forces
         self.period_s = 1.0 / rate_hz
-        self._smoothing = math.exp(-2.0 * math.pi * velocity_filter_hz * self.period_s)
+        self._filter_rad_s = 2.0 * math.pi * velocity_filter_hz
+        self._smoothing = math.exp(-self._filter_rad_s * self.period_s)
         self._previous_tip: Vec3 | None = None
         self._previous_t: float | None = None
         self._velocity: Vec3 = (0.0, 0.0, 0.0)
@@ -92,6 +93,7 @@ class ServoLoop:
         """Tick until the task is done; raises ScanFault (motors already off) if safety stops it."""
         if self.fault is not None:
             raise ScanFault(f"fault latched ({self.fault.code}): {self.fault.message}; reset first")
+        self._resume()
         give_up = self.clock.now() + timeout_s
         while not task.done:
             started = time.perf_counter()
@@ -101,6 +103,16 @@ class ServoLoop:
                 self._controlled_stop(fault, tick)
             self.robot.write(self.controller.currents(tick.q, tick.tip_mm, tick.velocity_mm_s, task.step(tick)))
             self._end_tick(tick, started)
+
+    def _resume(self) -> None:
+        """Between tasks this in-process loop does not tick; on the wall clock that pause is neither a
+        stall nor an encoder jump, so timing and motion checks start afresh (virtual time never pauses)."""
+        now = self.clock.now()
+        if now > self._deadline + self.period_s:
+            self._deadline = now
+            self._previous_t = None
+            self._previous_tip = None
+            self.supervisor.reset()
 
     def _check(self, tick: Tick, give_up: float) -> Fault | None:
         if self._estop_requested:
@@ -127,24 +139,26 @@ class ServoLoop:
         q = state.angles_rad
         tip_m = self.frame.from_robot(model.forward(q))
         tip = (tip_m[0] * 1000.0, tip_m[1] * 1000.0, tip_m[2] * 1000.0)
-        self._update_velocity(tip)
+        gap = 0.0 if self._previous_t is None else state.t_s - self._previous_t
+        self._previous_t = state.t_s
+        self._update_velocity(tip, gap)
         force = self.forces.tissue_force(sample, q)
         normal = self.forces.normal_force(sample, q, force)
         if normal > self.max_contact_force_n:
             self.max_contact_force_n = normal
-        gap = 0.0 if self._previous_t is None else state.t_s - self._previous_t
-        self._previous_t = state.t_s
         tick = Tick(state.t_s, q, tip, self._velocity, force, normal, sample, state.status, gap)
         self.last_tick = tick
         self.history.append((tick.t_s, tip, force))
         return tick
 
-    def _update_velocity(self, tip: Vec3) -> None:
+    def _update_velocity(self, tip: Vec3, dt_s: float) -> None:
+        """Low-pass filtered differences over the real time between ticks, so a late tick is no speed spike."""
         previous = self._previous_tip
         self._previous_tip = tip
-        if previous is None:
+        if previous is None or dt_s <= 0.0:
             return
-        a, rate = self._smoothing, (1.0 - self._smoothing) / self.period_s
+        a = self._smoothing if dt_s == self.period_s else math.exp(-self._filter_rad_s * dt_s)
+        rate = (1.0 - a) / dt_s
         v = self._velocity
         self._velocity = (
             a * v[0] + rate * (tip[0] - previous[0]),

@@ -1,0 +1,1 @@
+"""The ATI Nano17: calibration files and the DAQ layer that turns gauge voltages into forces."""

@@ -1,0 +1,52 @@
+"""A simulated DAQ: the Nano17's gauge voltages as a 16-bit DAQ would digitise them.
+
+The simulator knows the load on the sensor; the inverse of the calibration
+turns it into the six gauge voltages a real Nano17 would put out, so the host
+side runs the same calibration code as on the bench.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from drivers.nano17.calfile import load_calibration
+from drivers.nano17.calibration import Calibration
+from drivers.nano17.daq import DaqSensor, GaugeSource
+
+# The simulated Nano17 is calibrated like the real one on the seed paper's bench.
+SIM_CALIBRATION = Path(__file__).with_name("FT8577.cal")
+ADC_BITS = 16
+
+
+class SimDaq(GaugeSource):
+    def __init__(self, world, calibration: Calibration, rail_v: float = 10.0) -> None:
+        self.world, self.rail_v = world, rail_v
+        inverse = np.linalg.inv(calibration.in_units("N", "N-mm").matrix)
+        self._inverse = tuple(tuple(float(v) for v in row) for row in inverse)
+        self._step_v = 2.0 * rail_v / (1 << ADC_BITS)
+
+    def read_voltages(self) -> tuple[float, tuple[float, ...]]:
+        world = self.world
+        world.advance_to(world.clock.now())
+        t_s, (f0, f1, f2, f3, f4, f5) = world.sensor_reading()
+        digitise = self._digitise
+        return t_s, tuple(
+            digitise(r[0] * f0 + r[1] * f1 + r[2] * f2 + r[3] * f3 + r[4] * f4 + r[5] * f5) for r in self._inverse)
+
+    def _digitise(self, volts: float) -> float:
+        if volts != volts:  # NaN: a broken conversion stays broken, for the host to flag
+            return volts
+        clipped = min(max(volts, -self.rail_v), self.rail_v - self._step_v)
+        return round(clipped / self._step_v) * self._step_v
+
+
+def open_sim_sensor(url: str = "sim", world=None, clock=None, calibration: Calibration | None = None,
+                    stale_after_s: float = 0.01, **_ignored) -> DaqSensor:
+    """The simulated Nano17 through the DAQ layer (registered as the ``sim`` sensor backend)."""
+    from drivers.errors import DriverInitializationError
+
+    if world is None:
+        raise DriverInitializationError(f"{url}: the simulated sensor needs a simulated world (a scene)")
+    calibration = calibration or load_calibration(SIM_CALIBRATION)
+    return DaqSensor(SimDaq(world, calibration), calibration, clock or world.clock, stale_after_s)

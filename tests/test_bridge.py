@@ -1,0 +1,118 @@
+"""The host bridge driver against the simulated bridge over sim://, TCP (socket://) and a pty (serial://)."""
+import threading
+import time
+
+import pytest
+
+import drivers
+from drivers.clock import RealClock, VirtualClock
+from drivers.errors import DriverInitializationError, DriverOperationError, DriverTimeoutError
+from drivers.interfaces import STATUS_AMPLIFIERS_ON, STATUS_WATCHDOG_TRIPPED
+from drivers.phantom import codec
+from drivers.phantom.bridge import open_bridge_robot
+from drivers.sim.bridge_device import BridgeDevice
+from drivers.sim.scene import Scene
+from drivers.sim.servers import PtyBridgeEndpoint, SimulatorHost, TcpBridgeEndpoint
+from drivers.sim.world import SimWorld
+
+TIMEOUT_S = 0.1
+
+
+def make_world(clock):
+    return SimWorld(Scene(name="t", tissue={"stiffness_n_per_mm": 0.2}), clock)
+
+
+@pytest.fixture(params=["tcp", "pty"])
+def served(request):
+    """(host, endpoint) with the simulator serving in a thread; stopped and closed afterwards."""
+    host = SimulatorHost(make_world(RealClock()))
+    endpoint = host.add(TcpBridgeEndpoint(host.device) if request.param == "tcp" else PtyBridgeEndpoint(host.device))
+    stop = threading.Event()
+    thread = threading.Thread(target=host.serve, args=(stop,), daemon=True)
+    thread.start()
+    yield host, endpoint
+    stop.set()
+    thread.join(2)
+    host.close()
+
+
+def test_currents_reach_the_simulated_motors_and_encoders_come_back(served):
+    host, endpoint = served
+    with open_bridge_robot(endpoint.url, timeout_s=TIMEOUT_S) as robot:
+        robot.enable()
+        robot.write((0.0, 0.4, 0.0))
+        time.sleep(0.05)
+        state = robot.read()
+        assert state.status & STATUS_AMPLIFIERS_ON
+        assert host.world.currents_a == pytest.approx((0.0, 0.4, 0.0))
+        assert 0 < state.device_t_s <= host.world.t_s and all(isinstance(c, int) for c in state.counts)
+        robot.disable()
+        assert robot.read().status & STATUS_AMPLIFIERS_ON == 0
+        assert host.world.currents_a == (0.0, 0.0, 0.0)
+
+
+def test_the_bridge_watchdog_cuts_the_motors_when_the_host_goes_silent(served):
+    host, endpoint = served
+    with open_bridge_robot(endpoint.url, timeout_s=TIMEOUT_S, watchdog_s=0.05) as robot:
+        robot.enable()
+        robot.write((0.3, 0.3, 0.3))
+        time.sleep(0.2)  # four watchdog periods of silence
+        assert host.world.amplifiers_on is False and host.world.currents_a == (0.0, 0.0, 0.0)
+        robot.write((0.3, 0.3, 0.3))  # ignored while latched
+        assert robot.read().status & STATUS_WATCHDOG_TRIPPED and not host.world.amplifiers_on
+        robot.enable()  # enable + clear
+        assert robot.read().status & STATUS_WATCHDOG_TRIPPED == 0
+
+
+def test_a_stalled_bridge_is_detected_within_one_timeout(served):
+    host, endpoint = served
+    with open_bridge_robot(endpoint.url, timeout_s=TIMEOUT_S) as robot:
+        host.device.stalled = True
+        started = time.monotonic()
+        with pytest.raises(DriverTimeoutError, match="did not answer within 100 ms"):
+            robot.read()
+        assert time.monotonic() - started < TIMEOUT_S + 0.05
+        host.device.stalled = False
+        robot.read()  # the late answers are told apart by their sequence number
+
+
+def test_an_unplugged_bridge_is_detected_within_one_timeout(served):
+    host, endpoint = served
+    robot = open_bridge_robot(endpoint.url, timeout_s=TIMEOUT_S)
+    robot.read()
+    endpoint.unplug()
+    started = time.monotonic()
+    with pytest.raises((DriverOperationError, DriverTimeoutError)):
+        for _ in range(3):  # a TCP reset may surface on the write after the one that fails
+            robot.read()
+    assert time.monotonic() - started < TIMEOUT_S + 0.1
+    robot.transport.close()
+
+
+def test_corrupted_host_frames_are_counted_and_never_acted_on():
+    world = make_world(VirtualClock())
+    device = BridgeDevice(world)
+    frame = bytearray(codec.encode_command(1, codec.Command(True, True, 250, (1000, 1000, 1000))))
+    frame[8] ^= 0x40
+    assert device.handle(b"\x00garbage" + bytes(frame)) == b""
+    assert world.amplifiers_on is False
+    (reply,) = codec.FrameDecoder().feed(device.handle(codec.encode_frame(codec.READ, 2)))
+    assert codec.decode_state(reply.payload).rx_errors >= 1
+
+
+def test_sim_url_goes_through_the_codec_in_process():
+    world = make_world(VirtualClock())
+    robot = drivers.open_robot("sim://", world=world, clock=world.clock)
+    robot.enable()
+    robot.write((0.0, 0.5, 0.0))
+    assert world.currents_a == (0.0, 0.5, 0.0)
+    assert robot.transport.device.decoder.rejected_frames == 0 and robot.state.ack_seq == robot._seq
+
+
+def test_opening_an_absent_device_fails_at_once_naming_it(tmp_path):
+    for url, fragment in [("socket://127.0.0.1:1", "127.0.0.1:1"), (f"serial://{tmp_path}/ttyNONE", "ttyNONE"),
+                          ("bogus://x", "known schemes")]:
+        started = time.monotonic()
+        with pytest.raises(DriverInitializationError, match=fragment):
+            open_bridge_robot(url, timeout_s=TIMEOUT_S)
+        assert time.monotonic() - started < 1.0
