@@ -14,7 +14,7 @@ from drivers.errors import DriverError
 from palpd.errors import EXIT_FAILURE, PalpdError
 
 # Order is the order of `palpd --help`.
-COMMAND_MODULES = ["scan", "bench"]
+COMMAND_MODULES = ["scan", "serve", "schema", "replay", "keygen", "bench"]
 
 
 def build_parser() -> argparse.ArgumentParser:
