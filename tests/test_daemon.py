@@ -9,6 +9,7 @@ import pytest
 from conftest import assert_one_line_error
 from daemon_client import Daemon, receive
 from palpd.bus.messages import EVENT_MODELS
+from palpd.daemon.mcap import read_messages
 from palpd.daemon.session import read_journal
 
 
@@ -59,6 +60,11 @@ def test_a_client_drives_a_scan_and_gets_the_same_estimate_by_request(daemon):
     session = daemon.state_dir / "sessions" / status["session"]
     assert len(read_journal(session / "journal.jsonl")) == 25
     assert json.loads((session / "session.json").read_text())["status"] == "finished"
+    recorded = read_messages(session / "recording-1.mcap")
+    assert [p for t, p in recorded if t == "estimate"][-1] == final
+    assert sum(t == "palpation" for t, _ in recorded) == 25
+    replayed = subprocess.run([sys.executable, "-m", "palpd", "replay", str(session)], capture_output=True, text=True)
+    assert replayed.returncode == 0 and "the recorded estimate is reproduced" in replayed.stdout, replayed.stdout
 
 
 def test_sigterm_mid_scan_stops_safely_and_exits_0(daemon):
