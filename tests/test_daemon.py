@@ -125,3 +125,20 @@ def test_non_loopback_bind_without_keys_is_refused(tmp_path, run_cli):
     result = run_cli("serve", env=env)
     assert_one_line_error(result, "tcp://0.0.0.0:5999", "CURVE")
     assert result.returncode == 78
+
+
+def test_palpctl_status_scan_estimate_and_plot(daemon, run_cli, tmp_path):
+    daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
+
+    def palpctl(*args):
+        return run_cli("--endpoint", daemon.commands, "--events", daemon.events, *args, module="palpd.palpctl")
+
+    assert json.loads(palpctl("status").stdout)["state"] == "ready"
+    started = palpctl("scan", "start", "--max-palpations", "9", "--size-mm", "40", "40")
+    assert started.returncode == 0, started.stderr
+    daemon.wait_for(lambda s: s["state"] == "ready" and s["palpations"] == 9, what="scan end")
+    assert json.loads(palpctl("estimate").stdout)["estimate"]["points"] == 9
+    refused = palpctl("reset")
+    assert refused.returncode == 1 and "invalid_state" in refused.stderr
+    assert palpctl("plot", "map.png").returncode == 0
+    assert (tmp_path / "map.png").read_bytes().startswith(b"\x89PNG")

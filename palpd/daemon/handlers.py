@@ -31,7 +31,9 @@ def status(sup, command) -> None:
 
 def estimate_get(sup, command) -> None:
     estimate = sup.last_estimate.model_dump(mode="json") if sup.last_estimate is not None else None
-    sup.commands.reply(command, estimate=estimate)
+    probes = [{"xy_mm": list(xy), "stiffness_n_per_mm": k}
+              for xy, k in zip(sup.estimator.xy_mm, sup.estimator.k_n_per_mm)]
+    sup.commands.reply(command, estimate=estimate, probes=probes, tissue_size_mm=list(sup.bench.tissue_size_mm))
 
 
 def scan_start(sup, command) -> None:
