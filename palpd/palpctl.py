@@ -85,7 +85,11 @@ def call(endpoint: str, cmd: str, cmd_args: dict, timeout_s: float, curve: dict 
     """One request, one reply; raises TimeoutError when the daemon does not answer in time."""
     request_id = uuid.uuid4().hex
     with zmq.Context() as context, _socket(context, zmq.DEALER, endpoint, curve or {}) as socket:
-        socket.send_json({"id": request_id, "cmd": cmd, "args": cmd_args})
+        socket.setsockopt(zmq.SNDTIMEO, int(timeout_s * 1000))  # a refused CURVE handshake leaves no peer
+        try:
+            socket.send_json({"id": request_id, "cmd": cmd, "args": cmd_args})
+        except zmq.Again:
+            raise TimeoutError(f"cannot reach {endpoint} within {timeout_s:g} s (are the keys right?)") from None
         if not socket.poll(int(timeout_s * 1000)):
             raise TimeoutError(f"no reply from {endpoint} within {timeout_s:g} s "
                                "(is `palpd serve` running, and are the keys right?)")

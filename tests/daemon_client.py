@@ -16,18 +16,21 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "config" / "scenes"
 
 
-def free_loopback_port(context: zmq.Context) -> int:
-    with context.socket(zmq.PUB) as probe:
-        port = probe.bind_to_random_port("tcp://127.0.0.1")
-        probe.setsockopt(zmq.LINGER, 0)
-    return port
+def free_loopback_ports(context: zmq.Context, count: int) -> list[int]:
+    """Distinct free ports: all probe sockets stay bound until every port is chosen."""
+    probes = [context.socket(zmq.PUB) for _ in range(count)]
+    try:
+        return [probe.bind_to_random_port("tcp://127.0.0.1") for probe in probes]
+    finally:
+        for probe in probes:
+            probe.close(linger=0)
 
 
 class Daemon:
     def __init__(self, tmp_path: Path, scene: str = "paper.toml", realtime: bool = False, env: dict | None = None):
         self.context = zmq.Context()
-        self.events = f"tcp://127.0.0.1:{free_loopback_port(self.context)}"
-        self.commands = f"tcp://127.0.0.1:{free_loopback_port(self.context)}"
+        events_port, commands_port = free_loopback_ports(self.context, 2)
+        self.events, self.commands = f"tcp://127.0.0.1:{events_port}", f"tcp://127.0.0.1:{commands_port}"
         self.state_dir = tmp_path / "state"
         self.env = {**os.environ, "PALPD_BUS__EVENTS": self.events, "PALPD_BUS__COMMANDS": self.commands,
                     "PALPD_DAEMON__STATE_DIR": str(self.state_dir), "PALPD_DAEMON__REALTIME": json.dumps(realtime),
@@ -64,7 +67,11 @@ class Daemon:
         """One request; the reply, or None if none came in time."""
         socket = socket or self.dealer()
         request_id = uuid.uuid4().hex
-        socket.send_json({"id": request_id, "cmd": cmd, "args": args or {}})
+        socket.setsockopt(zmq.SNDTIMEO, int(timeout_s * 1000))  # a refused handshake leaves no peer to queue for
+        try:
+            socket.send_json({"id": request_id, "cmd": cmd, "args": args or {}})
+        except zmq.Again:
+            return None
         give_up = time.monotonic() + timeout_s
         while socket.poll(max(1, int((give_up - time.monotonic()) * 1000))):
             reply = socket.recv_json()
@@ -77,7 +84,7 @@ class Daemon:
         socket = self.dealer()
         give_up = time.monotonic() + timeout_s
         while time.monotonic() < give_up:
-            reply = self.call("status", socket=socket, timeout_s=give_up - time.monotonic())
+            reply = self.call("status", socket=socket, timeout_s=min(1.0, max(0.01, give_up - time.monotonic())))
             if reply is not None and predicate(reply):
                 return reply
             self.assert_alive()
