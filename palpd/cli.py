@@ -14,7 +14,8 @@ from drivers.errors import DriverError
 from palpd.errors import EXIT_FAILURE, PalpdError
 
 # Order is the order of `palpd --help`.
-COMMAND_MODULES = ["scan", "simulate", "learner", "dataset", "study", "calibration", "bench"]
+COMMAND_MODULES = ["scan", "serve", "learner", "simulate", "dataset", "study", "calibration", "schema",
+                   "replay", "keygen", "bench"]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -132,6 +132,19 @@ class BusSettings(_Section):
     events: str = "tcp://127.0.0.1:5555"
     commands: str = "tcp://127.0.0.1:5556"
     learner_events: str = "tcp://127.0.0.1:5557"  # `palpd learner` publishes estimates here
+    high_water_mark: Annotated[int, Field(ge=1, le=1_000_000)] = 1000  # per subscriber; beyond it PUB drops
+    # CURVE: the daemon's secret key file (from `palpd keygen`) and directories of clients' public keys.
+    # Required when an endpoint is not loopback or ipc.
+    curve_secret_key: str = ""
+    operator_keys: str = ""  # all commands
+    observer_keys: str = ""  # events and read-only commands
+
+
+class DaemonSettings(_Section):
+    state_dir: str = ""  # sessions live here; "" = $STATE_DIRECTORY (systemd) or ~/.local/state/palpd
+    scene: str = ""  # the simulated bench's scene, needed while robot.url is sim://
+    realtime: bool = True  # simulated bench on the wall clock (false: virtual time, as fast as the CPU allows)
+    stop_timeout_s: Positive = 10.0  # SIGTERM/scan.stop: wait this long for the palpation to finish, then abort
 
 
 class Settings(_Section):
@@ -146,6 +159,7 @@ class Settings(_Section):
     scan: ScanSettings = ScanSettings()
     learner: LearnerSettings = LearnerSettings()
     bus: BusSettings = BusSettings()
+    daemon: DaemonSettings = DaemonSettings()
 
     @model_validator(mode="after")
     def _palpation_below_cap(self):

@@ -6,7 +6,7 @@ field changes meaning or goes away.
 """
 from __future__ import annotations
 
-from typing import Any, Literal, Optional
+from typing import Annotated, Any, Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -22,10 +22,16 @@ class Event(BaseModel):
     t: float  # seconds; robot (virtual or wall) time of the event
 
 
+State = Literal["configure", "ready", "scanning", "fault", "stopped"]
+
+
 class Status(Event):
-    state: Literal["configure", "ready", "scanning", "fault", "stopped"]
+    state: State
     palpations: int = 0
     message: str = ""
+    session: str = ""  # the session directory's name
+    expected_total: int = 0  # palpations the scan plans (0 when no scan)
+    resumable: bool = False  # an unfinished session waits for scan.start {"resume": true}
 
 
 class Palpation(Event):
@@ -71,6 +77,43 @@ EVENT_MODELS: dict[str, type[Event]] = {
 }
 
 
+class _Args(BaseModel):
+    """Command arguments, validated from JSON in strict mode: "5" is not a number, 5 is."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+
+class NoArgs(_Args):
+    pass
+
+
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+
+
+class ScanStartArgs(_Args):
+    strategy: Literal["raster", "random", "active"] = "raster"
+    max_palpations: Annotated[int, Field(ge=1, le=10000)] = 81
+    seed: Annotated[int, Field(ge=0)] = 0
+    # The region to palpate (tissue frame); default: the whole palpable rectangle.
+    center_mm: tuple[FiniteFloat, FiniteFloat] = (0.0, 0.0)
+    size_mm: Optional[tuple[PositiveFloat, PositiveFloat]] = None
+    depth_mm: Optional[Annotated[float, Field(gt=0, le=30)]] = None
+    speed_mm_s: Optional[Annotated[float, Field(gt=0, le=100)]] = None
+    resume: bool = False  # continue the unfinished session instead of starting a new one
+
+
+class ProbeAtArgs(_Args):
+    xy_mm: tuple[FiniteFloat, FiniteFloat]
+
+
+COMMAND_ARGS: dict[str, type[BaseModel]] = {
+    "status": NoArgs, "scan.start": ScanStartArgs, "scan.stop": NoArgs, "estop": NoArgs, "reset": NoArgs,
+    "estimate.get": NoArgs, "probe.at": ProbeAtArgs, "bias": NoArgs,
+}
+READ_ONLY_COMMANDS = ("status", "estimate.get")  # what observers may send
+
+
 class Request(BaseModel):
     model_config = ConfigDict(extra="forbid")
     id: str | int
@@ -79,5 +122,22 @@ class Request(BaseModel):
 
 
 class ErrorBody(BaseModel):
-    code: str
+    code: Literal["bad_json", "bad_request", "unknown_command", "bad_args", "invalid_state", "forbidden",
+                  "unavailable", "internal"]
     message: str
+
+
+class ErrorReply(BaseModel):
+    id: str | int | None
+    ok: Literal[False] = False
+    error: ErrorBody
+
+
+def json_schemas() -> dict[str, dict]:
+    """JSON Schema of every event topic and command (`palpd schema`, MCAP channels)."""
+    schemas = {topic: model.model_json_schema() for topic, model in EVENT_MODELS.items()}
+    schemas["request"] = Request.model_json_schema()
+    schemas["error"] = ErrorReply.model_json_schema()
+    for name, model in COMMAND_ARGS.items():
+        schemas[f"{name}.args"] = model.model_json_schema()
+    return schemas

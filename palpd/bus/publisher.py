@@ -1,0 +1,32 @@
+"""Event publisher: PUB with a high-water mark, so a slow subscriber loses events instead of stalling palpd."""
+from __future__ import annotations
+
+import zmq
+
+from palpd.bus.messages import EVENT_MODELS, Event
+
+
+class EventPublisher:
+    """Sends [topic, json] with a per-topic seq; validates every payload against its model."""
+
+    def __init__(self, context: zmq.Context, endpoint: str, high_water_mark: int, security) -> None:
+        self.socket = context.socket(zmq.PUB)
+        self.socket.setsockopt(zmq.LINGER, 0)
+        self.socket.setsockopt(zmq.SNDHWM, high_water_mark)
+        security.secure(self.socket)
+        self.socket.bind(endpoint)
+        self._seq = {topic: 0 for topic in EVENT_MODELS}
+
+    def publish(self, topic: str, t: float, **fields) -> Event:
+        """Build, validate and send one event; returns it (the recorder and estimate.get keep it)."""
+        event = EVENT_MODELS[topic](seq=self._seq[topic], t=t, **fields)
+        self._seq[topic] += 1
+        try:
+            # PUB never blocks: at the high-water mark it drops for that subscriber.
+            self.socket.send_multipart([topic.encode(), event.model_dump_json().encode()], zmq.NOBLOCK)
+        except zmq.Again:
+            pass
+        return event
+
+    def close(self) -> None:
+        self.socket.close(linger=0)

@@ -1,0 +1,136 @@
+"""What each command does to the supervisor, and which lifecycle states allow it."""
+from __future__ import annotations
+
+from palpd.daemon.jobs import ProbeJob, ScanJob, region_plan, region_problem, reloaded_plan
+from palpd.daemon.learning import make_estimator
+from palpd.daemon.session import Session
+
+ALLOWED_STATES = {
+    "status": None, "estimate.get": None,  # None: any state
+    "scan.start": ("ready",), "scan.stop": ("scanning",), "probe.at": ("ready",), "bias": ("ready",),
+    "estop": ("configure", "ready", "scanning", "fault"), "reset": ("fault",),
+}
+
+
+def dispatch(sup, command) -> None:
+    allowed = ALLOWED_STATES[command.cmd]
+    if allowed is not None and sup.state not in allowed:
+        sup.commands.fail(command, "invalid_state", f"{command.cmd} is not possible while {sup.state}"
+                                                    f" (only while {' or '.join(allowed)})")
+        return
+    handler = HANDLERS[command.cmd]
+    try:
+        handler(sup, command)
+    except Exception as exc:  # a bug in one handler must not take the daemon down
+        sup.commands.fail(command, "internal", f"{command.cmd} failed: {exc!r}")
+
+
+def status(sup, command) -> None:
+    sup.commands.reply(command, **sup.status_fields())
+
+
+def estimate_get(sup, command) -> None:
+    estimate = sup.last_estimate.model_dump(mode="json") if sup.last_estimate is not None else None
+    probes = [{"xy_mm": list(xy), "stiffness_n_per_mm": k}
+              for xy, k in zip(sup.estimator.xy_mm, sup.estimator.k_n_per_mm)]
+    sup.commands.reply(command, estimate=estimate, probes=probes, tissue_size_mm=list(sup.bench.tissue_size_mm))
+
+
+def scan_start(sup, command) -> None:
+    args = command.args
+    if args.strategy == "active":
+        sup.commands.fail(command, "unavailable", "strategy active needs the online learner, not in this version")
+        return
+    if args.resume:
+        _resume(sup, command)
+        return
+    scan = args.model_dump(mode="json", exclude={"resume"})
+    problem = region_problem(scan, sup.bench.tissue_size_mm)
+    if problem:
+        sup.commands.fail(command, "bad_args", f"scan.start args: {problem}")
+        return
+    if sup.session is not None and sup.session.meta["status"] == "unfinished":
+        sup.session.finish("abandoned")
+    sup.session = Session.create(sup.sessions_dir, scan)
+    sup.estimator = make_estimator(sup.settings)
+    _start(sup, command, region_plan(scan, sup.bench.tissue_size_mm))
+
+
+def _resume(sup, command) -> None:
+    session = sup.session
+    if session is None or session.meta["status"] != "unfinished":
+        sup.commands.fail(command, "invalid_state", "there is no unfinished session to resume")
+        return
+    _start(sup, command, reloaded_plan(session, sup.bench.tissue_size_mm))
+
+
+def _start(sup, command, planner) -> None:
+    scan = sup.session.meta["scan"]
+    settings = sup.settings.updated(
+        scan={"strategy": scan["strategy"], "max_palpations": scan["max_palpations"], "seed": scan["seed"]},
+        palpation={"depth_mm": scan["depth_mm"], "speed_mm_s": scan["speed_mm_s"]})
+    sup.job = ScanJob(sup.session, settings, planner, sup.estimator)
+    sup.job.stop_reason = None
+    sup.open_recording()
+    sup.worker.submit(sup.job)
+    sup.set_state("scanning", f"scan {scan['strategy']}")
+    sup.commands.reply(command, session=sup.session.name, expected_total=planner.expected_total,
+                       already_done=len(sup.session.entries))
+
+
+def scan_stop(sup, command) -> None:
+    sup.job.stop_reason = "stopped"
+    sup.worker.stop_requested.set()
+    sup.commands.reply(command, stopping=True)
+
+
+def estop(sup, command) -> None:
+    sup.worker.estop.set()  # trips the servo loop on its next tick; any later motion trips at once
+    if sup.job is None:
+        sup.set_state("fault", "estop")
+        sup.publish("fault", sup.bench.clock.now(), code="estop", message="emergency stop requested")
+    sup.commands.reply(command, estop=True)
+
+
+def reset(sup, command) -> None:
+    sup.worker.estop.clear()
+    sup.bench.servo.reset()  # the worker is idle in fault: nothing else touches the servo now
+    sup.set_state("ready", "fault cleared")
+    sup.commands.reply(command, state=sup.state)
+
+
+def probe_at(sup, command) -> None:
+    problem = region_problem({"center_mm": command.args.xy_mm, "size_mm": (0.0, 0.0)}, sup.bench.tissue_size_mm)
+    if problem:
+        sup.commands.fail(command, "bad_args", f"probe.at args: point {problem.split(' at ')[1]}")
+        return
+    sup.job = ProbeJob(sup.settings, command.args.xy_mm, sup.probes_done)
+    sup.worker.submit(sup.job)
+    sup.set_state("scanning", "probe")
+    sup.commands.reply(command, accepted=True)
+
+
+def bias(sup, command) -> None:
+    sup.job = lambda worker: worker.tare()
+    sup.worker.submit(sup.job)
+    sup.set_state("scanning", "bias")
+    sup.commands.reply(command, accepted=True)
+
+
+HANDLERS = {"status": status, "estimate.get": estimate_get, "scan.start": scan_start, "scan.stop": scan_stop,
+            "estop": estop, "reset": reset, "probe.at": probe_at, "bias": bias}
+
+
+def job_ended(sup, fault: dict | None) -> None:
+    job, sup.job = sup.job, None
+    if isinstance(job, ScanJob) and job.finished:
+        sup.session.finish("finished")
+    elif isinstance(job, ScanJob) and job.stop_reason == "stopped":
+        sup.session.finish("stopped")
+    if fault is not None:
+        sup.publish("fault", sup.bench.clock.now(), code=fault["code"], message=fault["message"])
+        sup.set_state("fault", fault["code"])
+    else:
+        sup.set_state("ready", "scan finished" if getattr(job, "finished", False) else "")
+    if isinstance(job, ScanJob):
+        sup.close_recording()  # after the last status and fault, so the recording has them

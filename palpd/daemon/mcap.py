@@ -1,0 +1,94 @@
+"""A small MCAP writer and reader (unchunked, JSON messages with JSON-Schema channels, as Foxglove reads).
+
+Written here rather than adding the `mcap` package: the format needs ~100 lines
+for what palpd records, and the reader must tolerate a file cut short by a
+crash (no DataEnd/Footer), which is exactly what crash recovery reads.
+Spec: https://mcap.dev/spec — records are opcode (u8), length (u64 LE), content.
+"""
+from __future__ import annotations
+
+import json
+import struct
+import time
+from pathlib import Path
+
+MAGIC = b"\x89MCAP0\r\n"
+OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_DATA_END = 0x01, 0x02, 0x03, 0x04, 0x05, 0x0F
+FLUSH_INTERVAL_S = 1.0  # a crash loses at most this much of the recording
+
+
+def _string(text: str) -> bytes:
+    data = text.encode()
+    return struct.pack("<I", len(data)) + data
+
+
+def _record(opcode: int, content: bytes) -> bytes:
+    return struct.pack("<BQ", opcode, len(content)) + content
+
+
+class McapWriter:
+    """Appends messages; flushes to the OS at least once a second (and on close)."""
+
+    def __init__(self, path: Path, schemas: dict[str, dict], library: str = "palpd") -> None:
+        self._file = open(path, "wb")
+        self._file.write(MAGIC + _record(OP_HEADER, _string("") + _string(library)))
+        self._channels: dict[str, int] = {}
+        self._sequence = 0
+        self._flushed_at = time.monotonic()
+        for channel_id, (topic, schema) in enumerate(schemas.items(), start=1):
+            self._add_channel(channel_id, topic, schema)
+
+    def _add_channel(self, channel_id: int, topic: str, schema: dict) -> None:
+        schema_bytes = json.dumps(schema).encode()
+        self._file.write(_record(OP_SCHEMA, struct.pack("<H", channel_id) + _string(schema.get("title", topic))
+                                 + _string("jsonschema") + struct.pack("<I", len(schema_bytes)) + schema_bytes))
+        metadata = b""
+        self._file.write(_record(OP_CHANNEL, struct.pack("<HH", channel_id, channel_id) + _string(topic)
+                                 + _string("json") + struct.pack("<I", len(metadata)) + metadata))
+        self._channels[topic] = channel_id
+
+    def write(self, topic: str, payload: dict, log_time_s: float | None = None) -> None:
+        ns = int((time.time() if log_time_s is None else log_time_s) * 1e9)
+        header = struct.pack("<HIQQ", self._channels[topic], self._sequence & 0xFFFFFFFF, ns, ns)
+        self._file.write(_record(OP_MESSAGE, header + json.dumps(payload).encode()))
+        self._sequence += 1
+        self.flush_if_due()
+
+    def flush_if_due(self) -> None:
+        if time.monotonic() - self._flushed_at >= FLUSH_INTERVAL_S:
+            self.flush()
+
+    def flush(self) -> None:
+        self._file.flush()
+        self._flushed_at = time.monotonic()
+
+    def close(self) -> None:
+        if self._file.closed:
+            return
+        self._file.write(_record(OP_DATA_END, struct.pack("<I", 0)))
+        self._file.write(_record(OP_FOOTER, struct.pack("<QQI", 0, 0, 0)))  # no summary section
+        self._file.write(MAGIC)
+        self._file.close()
+
+
+def read_messages(path: Path) -> list[tuple[str, dict]]:
+    """(topic, payload) of every complete message, in order; a truncated tail (crash) is ignored."""
+    data = Path(path).read_bytes()
+    if not data.startswith(MAGIC):
+        raise ValueError(f"{path}: not an MCAP file")
+    topics: dict[int, str] = {}
+    messages = []
+    offset = len(MAGIC)
+    while offset + 9 <= len(data):
+        opcode, length = struct.unpack_from("<BQ", data, offset)
+        start, offset = offset + 9, offset + 9 + length
+        if offset > len(data) or opcode == OP_FOOTER:
+            break
+        if opcode == OP_CHANNEL:
+            channel_id, _ = struct.unpack_from("<HH", data, start)
+            (topic_len,) = struct.unpack_from("<I", data, start + 4)
+            topics[channel_id] = data[start + 8:start + 8 + topic_len].decode()
+        elif opcode == OP_MESSAGE:
+            (channel_id,) = struct.unpack_from("<H", data, start)
+            messages.append((topics[channel_id], json.loads(data[start + 22:offset])))
+    return messages

@@ -1,0 +1,188 @@
+"""The daemon supervisor: bus, commands, recorder, lifecycle and sd_notify, on one thread that never blocks.
+
+Lifecycle: configure -> ready -> scanning -> (ready | fault) ... -> stopped.
+The robot work runs in the ScanWorker; this loop only polls sockets, so status
+and estimate.get answer at once even mid-palpation.
+"""
+from __future__ import annotations
+
+import signal
+import time
+
+import zmq
+
+from palpd.bus.commands import CommandServer
+from palpd.bus.messages import EVENT_MODELS, json_schemas
+from palpd.bus.publisher import EventPublisher
+from palpd.bus.security import Security
+from palpd.daemon import handlers
+from palpd.daemon.learning import make_estimator
+from palpd.daemon.mcap import McapWriter
+from palpd.daemon.notify import Notifier
+from palpd.daemon.session import ensure_writable, find_unfinished, state_directory
+from palpd.daemon.worker import WORKER_ENDPOINT, ScanWorker
+from palpd.errors import PalpdError
+
+POLL_MS = 100
+QUIT_GRACE_S = 5.0
+
+
+class Supervisor:
+    def __init__(self, settings, bench) -> None:
+        self.settings, self.bench = settings, bench
+        self.security = Security.from_settings(settings.bus)
+        self.sessions_dir = ensure_writable(state_directory(settings.daemon.state_dir))
+        self.notifier = Notifier()
+        self.context = zmq.Context()
+        self.state, self.message = "configure", ""
+        self.session, self.job, self.recording = None, None, None
+        self.estimator = make_estimator(settings)
+        self.last_estimate = None
+        self.probes_done = 0
+        self._terminating = False
+        self._last_watchdog = 0.0
+
+    # Start and stop -----------------------------------------------------------------------------
+
+    def open(self) -> None:
+        self.security.start(self.context)
+        try:
+            self.events = EventPublisher(self.context, self.settings.bus.events,
+                                         self.settings.bus.high_water_mark, self.security)
+            self.commands = CommandServer(self.context, self.settings.bus.commands, self.security)
+        except zmq.ZMQError as exc:
+            self.close()
+            raise PalpdError(f"bus: cannot bind: {exc}") from None
+        self.inbox = self.context.socket(zmq.PULL)
+        self.inbox.bind(WORKER_ENDPOINT)
+        self.worker = ScanWorker(self.context, self.bench, self.settings)
+        self.worker.start()
+        self._recover()
+        self.set_state("ready", "recovered an unfinished session" if self.session else "")
+        self.notifier.ready(self.status_line())
+
+    def _recover(self) -> None:
+        session = find_unfinished(self.sessions_dir)
+        if session is None:
+            return
+        self.session = session
+        for entry in session.entries:
+            self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0)
+        self.publish("estimate", self.bench.clock.now(), **self.estimator.estimate())
+
+    def close(self) -> None:
+        for name in ("commands", "events", "inbox"):
+            if hasattr(self, name):
+                getattr(self, name).close()
+        self.security.stop()
+        self.context.term()
+        self.notifier.close()
+
+    # The loop --------------------------------------------------------------------------------------
+
+    def serve(self) -> int:
+        signal.signal(signal.SIGTERM, self._on_signal)
+        signal.signal(signal.SIGINT, self._on_signal)
+        poller = zmq.Poller()
+        poller.register(self.commands.socket, zmq.POLLIN)
+        poller.register(self.inbox, zmq.POLLIN)
+        while not self._terminating:
+            self._turn(poller)
+        self._shut_down(poller)
+        return 0
+
+    def _turn(self, poller) -> None:
+        ready = dict(poller.poll(POLL_MS))
+        if self.inbox in ready:
+            self._drain_worker()
+        if self.commands.socket in ready:
+            for _ in range(100):  # a burst of requests must not starve the worker's events
+                if not self.commands.socket.poll(0):
+                    break
+                command = self.commands.receive()
+                if command is not None:
+                    handlers.dispatch(self, command)
+        if self.recording is not None:
+            self.recording.flush_if_due()
+        self._ping_watchdog()
+
+    def _drain_worker(self) -> None:
+        while self.inbox.poll(0):
+            message = self.inbox.recv_pyobj()
+            if message["kind"] == "event":
+                self.publish(message["topic"], message["t"], **message["fields"])
+            elif message["kind"] == "job_end":
+                handlers.job_ended(self, message["fault"])
+
+    def _ping_watchdog(self) -> None:
+        """WATCHDOG=1 only while the worker (servo loop or its idle loop) shows it is alive."""
+        interval = self.notifier.watchdog_interval_s
+        if interval is None or self.worker.heartbeat.age_s() > interval:
+            return
+        now = time.monotonic()
+        if now - self._last_watchdog >= interval / 2:
+            self.notifier.watchdog()
+            self._last_watchdog = now
+
+    def _on_signal(self, signum, frame) -> None:
+        self._terminating = True
+
+    def _shut_down(self, poller) -> None:
+        """Let the palpation under way finish (or abort it), motors off, recordings flushed."""
+        self.notifier.stopping()
+        if self.job is not None:
+            self.job.stop_reason = "terminated"
+            self.worker.stop_requested.set()
+            self._wait_for_job(poller, self.settings.daemon.stop_timeout_s)
+        if self.job is not None:
+            self.worker.estop.set()  # the palpation did not finish in time: trip, motors off
+            self._wait_for_job(poller, QUIT_GRACE_S)
+        self.worker.quit()
+        self.worker.join(QUIT_GRACE_S)
+        self._drain_worker()
+        self.set_state("stopped", "terminated")
+        self.close_recording()
+        self.close()
+
+    def _wait_for_job(self, poller, timeout_s: float) -> None:
+        give_up = time.monotonic() + timeout_s
+        while self.job is not None and time.monotonic() < give_up:
+            self._turn(poller)
+
+    # Events, state, recording ------------------------------------------------------------------------
+
+    def publish(self, topic: str, t: float, **fields) -> None:
+        event = self.events.publish(topic, t, **fields)
+        if topic == "estimate":
+            self.last_estimate = event
+        elif topic == "palpation":
+            self.probes_done += 1
+        if self.recording is not None:
+            self.recording.write(topic, event.model_dump(mode="json"))
+
+    def set_state(self, state: str, message: str = "") -> None:
+        self.state, self.message = state, message
+        self.publish("status", self.bench.clock.now(), **self.status_fields())
+        self.notifier.status(self.status_line())
+
+    def status_fields(self) -> dict:
+        session = self.session
+        total = self.job.planner.expected_total if getattr(self.job, "planner", None) else 0
+        return {
+            "state": self.state, "message": self.message, "palpations": len(session.entries) if session else 0,
+            "session": session.name if session else "", "expected_total": total,
+            "resumable": bool(session and self.job is None and session.meta["status"] == "unfinished"),
+        }
+
+    def status_line(self) -> str:
+        fields = self.status_fields()
+        return f"{fields['state']}: {fields['palpations']} palpations" + (f", {self.message}" if self.message else "")
+
+    def open_recording(self) -> None:
+        self.recording = McapWriter(self.session.next_recording(),
+                                    {topic: schema for topic, schema in json_schemas().items() if topic in EVENT_MODELS})
+
+    def close_recording(self) -> None:
+        if self.recording is not None:
+            self.recording.close()
+            self.recording = None

@@ -1,0 +1,140 @@
+"""The scan worker: owns the bench and runs scans, probes and tares off the bus thread.
+
+It talks to the supervisor only through an inproc PUSH socket (events and job
+ends) and two flags (stop, estop), so the bus never waits on the robot. Its
+liveness — the servo loop ticking, or the idle loop turning — is the heartbeat
+the supervisor turns into systemd WATCHDOG=1.
+
+Today the servo loop runs in this thread; when the servo process lands, this
+class is where its pipe goes: the jobs become requests to that process and the
+heartbeat its health messages.
+"""
+from __future__ import annotations
+
+import queue
+import threading
+import time
+
+import zmq
+
+from palpd.control.safety import Fault
+from palpd.control.tasks import HoldAndCollect, MoveTo
+from palpd.errors import ScanFault
+from palpd.scan import run_scan
+
+WORKER_ENDPOINT = "inproc://palpd-worker"
+IDLE_BEAT_S = 0.1
+
+
+class Heartbeat:
+    def __init__(self) -> None:
+        self.at = time.monotonic()
+
+    def beat(self) -> None:
+        self.at = time.monotonic()
+
+    def age_s(self) -> float:
+        return time.monotonic() - self.at
+
+
+class GuardedSupervisor:
+    """Wraps the safety supervisor: every tick beats the heart and honours an emergency stop."""
+
+    def __init__(self, inner, heartbeat: Heartbeat, estop: threading.Event) -> None:
+        self.inner, self.heartbeat, self.estop = inner, heartbeat, estop
+
+    def check(self, tick):
+        self.heartbeat.at = time.monotonic()
+        if self.estop.is_set():
+            return Fault("estop", "emergency stop requested", tick.t_s)
+        return self.inner.check(tick)
+
+    def reset(self) -> None:
+        self.inner.reset()
+
+
+class StoppablePlan:
+    """A planner that says "no more" once a stop is requested, so the palpation under way finishes."""
+
+    def __init__(self, inner, stop: threading.Event) -> None:
+        self.inner, self.stop = inner, stop
+        self.expected_total = inner.expected_total
+
+    def next_probe(self):
+        return None if self.stop.is_set() else self.inner.next_probe()
+
+    def observe(self, probe) -> None:
+        self.inner.observe(probe)
+
+
+class ScanWorker(threading.Thread):
+    def __init__(self, context: zmq.Context, bench, settings) -> None:
+        super().__init__(name="palpd-scan", daemon=True)
+        self.context, self.bench, self.settings = context, bench, settings
+        self.heartbeat = Heartbeat()
+        self.stop_requested, self.estop = threading.Event(), threading.Event()
+        self._jobs: queue.Queue = queue.Queue()
+        self._quit = False
+        bench.servo.supervisor = GuardedSupervisor(bench.servo.supervisor, self.heartbeat, self.estop)
+
+    def submit(self, job) -> None:
+        """job(worker) runs in this thread; a job returning normally ends with a job_end message."""
+        self.stop_requested.clear()
+        self._jobs.put(job)
+
+    def quit(self) -> None:
+        self._quit = True
+        self._jobs.put(None)
+
+    def run(self) -> None:
+        self.out = self.context.socket(zmq.PUSH)
+        self.out.connect(WORKER_ENDPOINT)
+        try:
+            while not self._quit:
+                self.heartbeat.beat()
+                try:
+                    job = self._jobs.get(timeout=IDLE_BEAT_S)
+                except queue.Empty:
+                    continue
+                if job is not None:
+                    self._run_job(job)
+        finally:
+            self.bench.servo.stop()  # amplifiers off whatever happened
+            self.out.close(linger=1000)
+
+    def _run_job(self, job) -> None:
+        fault = None
+        try:
+            job(self)
+        except ScanFault:
+            pass
+        except Exception as exc:  # a bug in a job must not kill the thread that owns the robot
+            self.bench.servo.stop()
+            self.send({"kind": "job_end", "fault": {"code": "internal", "message": repr(exc)[:300]}})
+            return
+        if self.bench.servo.fault is not None:
+            fault = self.bench.servo.fault.as_dict()
+        self.send({"kind": "job_end", "fault": fault})
+
+    def send(self, message: dict) -> None:
+        self.out.send_pyobj(message)
+
+    def event(self, topic: str, **fields) -> None:
+        self.send({"kind": "event", "topic": topic, "t": self.bench.clock.now(), "fields": fields})
+
+    # Jobs -------------------------------------------------------------------------------------------
+
+    def scan(self, settings, planner, on_probe) -> dict:
+        return run_scan(self.bench, settings, StoppablePlan(planner, self.stop_requested), on_probe)
+
+    def tare(self) -> None:
+        p, servo = self.settings.palpation, self.bench.servo
+        servo.start()
+        try:
+            above = (0.0, 0.0, p.clearance_mm)
+            servo.run(MoveTo(above, p.travel_speed_mm_s, p.accel_mm_s2))
+            hold = HoldAndCollect(p.tare_samples, where=above)
+            servo.run(hold)
+            servo.forces.tare(hold.samples)
+        finally:
+            servo.stop()

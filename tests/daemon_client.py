@@ -1,0 +1,120 @@
+"""A test's view of a running `palpd serve`: a real process, driven with nothing but pyzmq and JSON."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+import uuid
+from pathlib import Path
+
+import zmq
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = ROOT / "config" / "scenes"
+
+
+def free_loopback_ports(context: zmq.Context, count: int) -> list[int]:
+    """Distinct free ports: all probe sockets stay bound until every port is chosen."""
+    probes = [context.socket(zmq.PUB) for _ in range(count)]
+    try:
+        return [probe.bind_to_random_port("tcp://127.0.0.1") for probe in probes]
+    finally:
+        for probe in probes:
+            probe.close(linger=0)
+
+
+class Daemon:
+    def __init__(self, tmp_path: Path, scene: str = "paper.toml", realtime: bool = False, env: dict | None = None):
+        self.context = zmq.Context()
+        events_port, commands_port = free_loopback_ports(self.context, 2)
+        self.events, self.commands = f"tcp://127.0.0.1:{events_port}", f"tcp://127.0.0.1:{commands_port}"
+        self.state_dir = tmp_path / "state"
+        self.env = {**os.environ, "PALPD_BUS__EVENTS": self.events, "PALPD_BUS__COMMANDS": self.commands,
+                    "PALPD_DAEMON__STATE_DIR": str(self.state_dir), "PALPD_DAEMON__REALTIME": json.dumps(realtime),
+                    "PALPD_DAEMON__SCENE": str(SCENES / scene), **(env or {})}
+        self.process = None
+        self._sockets: list[zmq.Socket] = []
+
+    def start(self) -> "Daemon":
+        self.process = subprocess.Popen([sys.executable, "-m", "palpd", "serve"], env=self.env,
+                                        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        return self
+
+    def socket(self, kind: int, keys: dict | None = None) -> zmq.Socket:
+        socket = self.context.socket(kind)
+        socket.setsockopt(zmq.LINGER, 0)
+        for option, value in (keys or {}).items():
+            setattr(socket, option, value)
+        self._sockets.append(socket)
+        return socket
+
+    def subscriber(self, *topics: str, keys: dict | None = None) -> zmq.Socket:
+        socket = self.socket(zmq.SUB, keys)
+        for topic in topics or ("",):
+            socket.subscribe(topic)
+        socket.connect(self.events)
+        return socket
+
+    def dealer(self, keys: dict | None = None) -> zmq.Socket:
+        socket = self.socket(zmq.DEALER, keys)
+        socket.connect(self.commands)
+        return socket
+
+    def call(self, cmd: str, args: dict | None = None, socket=None, timeout_s: float = 20.0) -> dict | None:
+        """One request; the reply, or None if none came in time."""
+        socket = socket or self.dealer()
+        request_id = uuid.uuid4().hex
+        socket.setsockopt(zmq.SNDTIMEO, int(timeout_s * 1000))  # a refused handshake leaves no peer to queue for
+        try:
+            socket.send_json({"id": request_id, "cmd": cmd, "args": args or {}})
+        except zmq.Again:
+            return None
+        give_up = time.monotonic() + timeout_s
+        while socket.poll(max(1, int((give_up - time.monotonic()) * 1000))):
+            reply = socket.recv_json()
+            if reply.get("id") == request_id:
+                return reply
+        return None
+
+    def wait_for(self, predicate, timeout_s: float = 30.0, what: str = "condition") -> dict:
+        """Poll status until predicate(status) holds."""
+        socket = self.dealer()
+        give_up = time.monotonic() + timeout_s
+        while time.monotonic() < give_up:
+            reply = self.call("status", socket=socket, timeout_s=min(1.0, max(0.01, give_up - time.monotonic())))
+            if reply is not None and predicate(reply):
+                return reply
+            self.assert_alive()
+        raise AssertionError(f"timed out waiting for {what}; last status: {reply}")
+
+    def assert_alive(self) -> None:
+        if self.process.poll() is not None:
+            raise AssertionError(f"daemon exited {self.process.returncode}: {self.process.stderr.read()}")
+
+    def signal(self, signum=signal.SIGTERM) -> None:
+        self.process.send_signal(signum)
+
+    def wait(self, timeout_s: float = 30.0) -> int:
+        return self.process.wait(timeout_s)
+
+    def close(self) -> None:
+        for socket in self._sockets:
+            socket.close(linger=0)
+        if self.process is not None and self.process.poll() is None:
+            self.process.kill()
+            self.process.wait(10)
+        if self.process is not None:
+            self.process.stdout.close()
+            self.process.stderr.close()
+        self.context.term()
+
+
+def receive(socket: zmq.Socket, timeout_s: float = 20.0):
+    """(topic, payload) of the next event, or None."""
+    if not socket.poll(int(timeout_s * 1000)):
+        return None
+    topic, payload = socket.recv_multipart()
+    return topic.decode(), json.loads(payload)

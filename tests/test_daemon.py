@@ -1,0 +1,144 @@
+"""`palpd serve` as a real process, driven by clients that use only pyzmq and JSON."""
+import json
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from conftest import assert_one_line_error
+from daemon_client import Daemon, receive
+from palpd.bus.messages import EVENT_MODELS
+from palpd.daemon.mcap import read_messages
+from palpd.daemon.session import read_journal
+
+
+@pytest.fixture
+def daemon(tmp_path):
+    d = Daemon(tmp_path)
+    yield d
+    d.close()
+
+
+def published_required_fields() -> dict:
+    schemas = json.loads(subprocess.run([sys.executable, "-m", "palpd", "schema"], capture_output=True,
+                                        text=True, check=True).stdout)
+    return {topic: set(schemas[topic]["required"]) for topic in EVENT_MODELS}
+
+
+def collect_until_done(subscriber, timeout_s=30.0) -> dict[str, list]:
+    seen = {topic: [] for topic in EVENT_MODELS}
+    while True:
+        event = receive(subscriber, timeout_s)
+        assert event is not None, f"no event within {timeout_s} s; got {[(k, len(v)) for k, v in seen.items()]}"
+        topic, payload = event
+        seen[topic].append(payload)
+        if topic == "estimate" and payload["done"]:
+            return seen
+
+
+def test_a_client_drives_a_scan_and_gets_the_same_estimate_by_request(daemon):
+    required = published_required_fields()
+    daemon.start().wait_for(lambda s: s["ok"] and s["state"] == "ready", what="ready")
+    subscriber = daemon.subscriber()
+    # A late joiner learns the state by asking, never by sleeping: subscriptions settle while we ask.
+    assert daemon.call("estimate.get")["estimate"] is None
+    reply = daemon.call("scan.start", {"strategy": "raster", "max_palpations": 25})
+    assert reply["ok"] and reply["expected_total"] == 25, reply
+    seen = collect_until_done(subscriber)
+    for topic, payloads in seen.items():
+        for payload in payloads:
+            assert required[topic] <= set(payload), (topic, payload)
+            EVENT_MODELS[topic].model_validate(payload)
+    assert len(seen["stiffness"]) >= 20 and all(0.05 < s["stiffness_n_per_mm"] < 2 for s in seen["stiffness"])
+    final = seen["estimate"][-1]
+    assert final["points"] == len(seen["stiffness"]) and len(final["lumps"]) == 1
+    assert [p["seq"] for p in seen["palpation"]] == sorted(p["seq"] for p in seen["palpation"])
+    assert daemon.call("estimate.get")["estimate"] == final
+    status = daemon.wait_for(lambda s: s["state"] == "ready", what="scan end")
+    assert status["palpations"] == 25 and not status["resumable"]
+    session = daemon.state_dir / "sessions" / status["session"]
+    assert len(read_journal(session / "journal.jsonl")) == 25
+    assert json.loads((session / "session.json").read_text())["status"] == "finished"
+    recorded = read_messages(session / "recording-1.mcap")
+    assert [p for t, p in recorded if t == "estimate"][-1] == final
+    assert sum(t == "palpation" for t, _ in recorded) == 25
+    replayed = subprocess.run([sys.executable, "-m", "palpd", "replay", str(session)], capture_output=True, text=True)
+    assert replayed.returncode == 0 and "the recorded estimate is reproduced" in replayed.stdout, replayed.stdout
+
+
+def test_sigterm_mid_scan_stops_safely_and_exits_0(daemon):
+    daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
+    subscriber = daemon.subscriber("stiffness")
+    assert daemon.call("scan.start", {"max_palpations": 81})["ok"]
+    assert receive(subscriber) is not None  # mid-scan
+    daemon.signal(signal.SIGTERM)
+    assert daemon.wait() == 0, daemon.process.stderr.read()
+    (session,) = (daemon.state_dir / "sessions").iterdir()
+    entries = read_journal(session / "journal.jsonl")
+    assert 1 <= len(entries) < 81
+    recording = (session / "recording-1.mcap").read_bytes()
+    assert recording.endswith(b"\x89MCAP0\r\n")  # closed properly: footer and magic written
+
+
+def test_kill_9_mid_scan_then_restart_reloads_every_journaled_palpation_and_finishes(tmp_path):
+    first = Daemon(tmp_path).start()
+    try:
+        first.wait_for(lambda s: s["state"] == "ready", what="ready")
+        subscriber = first.subscriber("stiffness")
+        assert first.call("scan.start", {"strategy": "random", "max_palpations": 40, "seed": 3})["ok"]
+        for _ in range(3):
+            assert receive(subscriber) is not None
+        first.signal(signal.SIGKILL)
+        first.wait()
+    finally:
+        first.close()
+    (session,) = (tmp_path / "state" / "sessions").iterdir()
+    journaled = read_journal(session / "journal.jsonl")
+    assert 3 <= len(journaled) < 40
+    second = Daemon(tmp_path).start()
+    try:
+        status = second.wait_for(lambda s: s["state"] == "ready", what="ready after restart")
+        assert status["resumable"] and status["palpations"] == len(journaled)
+        assert second.call("estimate.get")["estimate"]["points"] == sum(
+            e["stiffness_n_per_mm"] is not None for e in journaled)
+        subscriber = second.subscriber("estimate")
+        reply = second.call("scan.start", {"resume": True})
+        assert reply["ok"] and reply["already_done"] == len(journaled), reply
+        final = collect_until_done(subscriber)["estimate"][-1]
+        assert final["points"] == 40
+        entries = read_journal(session / "journal.jsonl")
+        assert entries[:len(journaled)] == journaled and len(entries) == 40
+        assert [e["index"] for e in entries] == list(range(40))
+    finally:
+        second.close()
+
+
+def test_config_error_exits_78_with_one_line(tmp_path, run_cli):
+    env = Daemon(tmp_path).env | {"PALPD_PALPATION__DEPTH_MM": "deep"}
+    assert_one_line_error(result := run_cli("serve", env=env), "PALPD_PALPATION__DEPTH_MM")
+    assert result.returncode == 78
+
+
+def test_non_loopback_bind_without_keys_is_refused(tmp_path, run_cli):
+    env = Daemon(tmp_path).env | {"PALPD_BUS__EVENTS": "tcp://0.0.0.0:5999"}
+    result = run_cli("serve", env=env)
+    assert_one_line_error(result, "tcp://0.0.0.0:5999", "CURVE")
+    assert result.returncode == 78
+
+
+def test_palpctl_status_scan_estimate_and_plot(daemon, run_cli, tmp_path):
+    daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
+
+    def palpctl(*args):
+        return run_cli("--endpoint", daemon.commands, "--events", daemon.events, *args, module="palpd.palpctl")
+
+    assert json.loads(palpctl("status").stdout)["state"] == "ready"
+    started = palpctl("scan", "start", "--max-palpations", "9", "--size-mm", "40", "40")
+    assert started.returncode == 0, started.stderr
+    daemon.wait_for(lambda s: s["state"] == "ready" and s["palpations"] == 9, what="scan end")
+    assert json.loads(palpctl("estimate").stdout)["estimate"]["points"] == 9
+    refused = palpctl("reset")
+    assert refused.returncode == 1 and "invalid_state" in refused.stderr
+    assert palpctl("plot", "map.png").returncode == 0
+    assert (tmp_path / "map.png").read_bytes().startswith(b"\x89PNG")
