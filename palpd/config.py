@@ -64,6 +64,8 @@ class ControlSettings(_Section):
 class PalpationSettings(_Section):
     depth_mm: Annotated[float, Field(gt=0, le=30)] = 4.0
     speed_mm_s: Annotated[float, Field(gt=0, le=100)] = 10.0  # indentation speed
+    # "varying": the speed swings around speed_mm_s, so tissue damping b can be told from stiffness k
+    speed_profile: Literal["constant", "varying"] = "constant"
     approach_speed_mm_s: Annotated[float, Field(gt=0, le=100)] = 20.0
     travel_speed_mm_s: Annotated[float, Field(gt=0, le=300)] = 80.0
     accel_mm_s2: Annotated[float, Field(gt=0, le=10000)] = 2000.0

@@ -11,6 +11,7 @@ from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.scan import palpate
 from palpd.stiffness import REASONS, FitRejected, fit_stiffness
 from palpd.stiffness.batch import fit_batch, linear_batch
+from palpd.stiffness.palpation import depth_rate_mm_s
 
 DEPTH = np.linspace(0.0, 4.0, 400)
 
@@ -38,6 +39,28 @@ def test_simulated_palpation_recovers_the_scene_k_and_n_within_5_percent(k, n):
     assert params["n"] == pytest.approx(n, rel=0.05)
     reference = k * n * 2.0 ** (n - 1)  # dF/dx at the 2 mm reference indentation
     assert probe.stiffness_n_per_mm == pytest.approx(reference, rel=0.05)
+
+
+@pytest.mark.parametrize("profile", ["constant", "varying"])
+def test_simulated_palpation_of_damped_tissue_recovers_k_n_and_b_within_5_percent(profile):
+    k, n, b = 0.2, 1.3, 0.015  # damping: b·xⁿ·ẋ is about half of k·xⁿ at the 10 mm/s indentation
+    scene = Scene(name="damped", tissue={"stiffness_n_per_mm": k, "exponent": n, "damping_n_s_per_mm": b},
+                  sensor={"tilt": True})
+    # constant: the retract (ẋ < 0) separates b from k; varying: the press itself does, at 0.2-1.8 x the speed
+    settings = Settings().updated(stiffness={"model": "hunt-crossley"}, palpation={"speed_profile": profile})
+    probe = tared_palpation(scene, settings)
+    params = probe.fit.chosen.params
+    assert params["k_n_per_mm_n"] == pytest.approx(k, rel=0.05)
+    assert params["n"] == pytest.approx(n, rel=0.05)
+    assert params["b_n_s_per_mm_n1"] == pytest.approx(b, rel=0.05)
+
+
+def test_varying_speed_profile_presses_the_same_depths_slowly_and_quickly():
+    scene = Scene(name="lin", tissue={"stiffness_n_per_mm": 0.12})
+    probe = tared_palpation(scene, Settings().updated(palpation={"speed_profile": "varying"}))
+    rate = depth_rate_mm_s(probe.record.depth_mm, Settings().servo.rate_hz)[20:-20]
+    assert rate.min() < 0.5 * 10.0 and rate.max() > 1.4 * 10.0  # swings around the 10 mm/s default
+    assert probe.stiffness_n_per_mm == pytest.approx(0.12, rel=0.03)
 
 
 def test_selection_keeps_a_linear_tissue_linear_and_reports_k():

@@ -7,6 +7,7 @@ depth or force, whichever comes first.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from palpd.control.segment import Segment, Segmenter
@@ -14,6 +15,10 @@ from palpd.control.tasks import MoveTo
 
 Vec3 = tuple[float, float, float]
 NO_CONTACT_MARGIN_MM = 10.0  # how far below the nominal surface to look before giving up
+# speed_profile = "varying": the indentation speed swings between (1 - SWING) and (1 + SWING) times
+# speed_mm_s, SPEED_CYCLES times over the depth, so the same depths are pressed slowly and quickly.
+SPEED_SWING = 0.8
+SPEED_CYCLES = 3
 
 
 @dataclass
@@ -80,8 +85,15 @@ class Palpation:
             else:
                 self._start_retract(tick, reason)
             return self._setpoint()
-        self._target_z -= self.s.speed_mm_s * dt
+        self._target_z -= self._indent_speed_mm_s() * dt
         return self._setpoint()
+
+    def _indent_speed_mm_s(self) -> float:
+        """At one constant speed k·xⁿ and b·xⁿ·ẋ rise alike and a fit cannot tell them apart; a varying speed can."""
+        if self.s.speed_profile == "constant":
+            return self.s.speed_mm_s
+        progress = (self.record.contact_z_mm - self._target_z) / self.s.depth_mm
+        return self.s.speed_mm_s * (1.0 + SPEED_SWING * math.sin(2.0 * math.pi * SPEED_CYCLES * progress))
 
     def _hold(self, tick, dt) -> Vec3:
         if tick.t_s >= self._hold_until:

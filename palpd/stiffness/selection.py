@@ -49,7 +49,7 @@ def information_criterion(fit: ModelFit, parameters: int, criterion: str) -> flo
 
 
 def fit_stiffness(depth_mm, force_n, rate_mm_s=None, saturated=None, model: str = SELECT,
-                  criterion: str = "aicc", reference_depth_mm: float = 2.0) -> StiffnessResult:
+                  criterion: str = "bic", reference_depth_mm: float = 2.0) -> StiffnessResult:
     """Fit one palpation with the named model, or select among all it supports. Raises FitRejected."""
     if criterion not in CRITERIA:
         raise ValueError(f"unknown criterion {criterion!r}; choose from {', '.join(CRITERIA)}")
