@@ -3,13 +3,9 @@ from __future__ import annotations
 
 import sys
 
-from drivers.sim.scene import load_scene, truth_lumps
-from palpd import metrics
-from palpd.bench import open_bench
 from palpd.config import load_settings
 from palpd.errors import EXIT_FAILURE, UsageError
 from palpd.files import write_json
-from palpd.scan import plan, run_scan
 
 
 def add_parser(subparsers):
@@ -30,6 +26,12 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
+    # Heavy imports here, not at the top: `palpd --help` and argument errors stay fast.
+    from drivers.sim.scene import load_scene, truth_lumps
+    from palpd import metrics
+    from palpd.bench import open_bench
+    from palpd.scan import plan, run_scan
+
     if args.max_palpations is not None and args.max_palpations < 1:
         raise UsageError("--max-palpations must be at least 1")
     settings = load_settings(args.config).updated(
