@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import sys
 from pathlib import Path
 
 TARGET = {"center_mm": 1.0, "radius_mm": 1.0, "iou": 0.9}
@@ -47,7 +48,12 @@ def run(args) -> int:
 def _race(scene, seed: int) -> list[dict]:
     from palpd.commands._tradeoff_runs import first_on_target_active, first_on_target_random, first_on_target_raster
 
-    return [run(scene, seed) for run in (first_on_target_active, first_on_target_raster, first_on_target_random)]
+    rows = []
+    for run in (first_on_target_active, first_on_target_raster, first_on_target_random):
+        rows.append(run(scene, seed))
+        print(f"{scene.name} seed {seed} {rows[-1]['strategy']}: palpations to target {rows[-1]['palpations']}, "
+              f"robot time {rows[-1]['robot_time_s']} s", file=sys.stderr, flush=True)  # a long run shows progress
+    return rows
 
 
 def _curve(scene, seed: int) -> list[dict]:
