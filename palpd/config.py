@@ -122,6 +122,7 @@ class LearnerSettings(_Section):
     min_spacing_mm: NonNegative = 1.5
     length_scale_mm: tuple[Positive, Positive] = (1.5, 8.0)  # bounds of the kernel length scale
     refit_growth: Annotated[float, Field(gt=1.0)] = 1.3  # refit hyperparameters when the data grew this much
+    training_set: str = ""  # labelled dataset CSV (tumor column): τ learned from it; empty: τ from the data
 
     @model_validator(mode="after")
     def _bounds_in_order(self):

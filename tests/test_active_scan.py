@@ -9,7 +9,7 @@ from palpd.config import Settings
 from palpd.scan import plan, run_scan
 
 
-@pytest.mark.parametrize("scene_name", ["two-lumps", "no-lump"])
+@pytest.mark.parametrize("scene_name", ["two-lumps", "no-lump", "paper-edge"])
 def test_active_scan_with_defaults_finds_every_lump_and_no_false_one(scene_name):
     scene = load_scene(SCENES / f"{scene_name}.toml")
     settings = Settings().updated(scan={"strategy": "active"})

@@ -128,3 +128,18 @@ def test_any_field_gives_a_sane_map(lumps, noise, seed):
         assert math.isfinite(lump.radius_mm) and lump.boundary_mm[0] == lump.boundary_mm[-1]
         softer = all(k < TISSUE * 1.3 for *_, k in truth)
         assert not softer, "a lump in tissue with no stiffer spot"
+
+
+def test_active_planner_uses_each_probes_fit_uncertainty_as_observation_noise():
+    from types import SimpleNamespace
+
+    from palpd.config import Settings
+    from palpd.learner import ActivePlanner
+
+    planner = ActivePlanner((60.0, 60.0), Settings().updated(learner={"grid_points": 21}), 40)
+    for x, se in [(0.0, 0.002), (10.0, 0.03)]:
+        fit = SimpleNamespace(stiffness_n_per_mm=0.12, stiffness_se_n_per_mm=se)
+        planner.observe(SimpleNamespace(record=SimpleNamespace(xy_mm=(x, 0.0)), fit=fit))
+    planner.observe(SimpleNamespace(record=SimpleNamespace(xy_mm=(20.0, 0.0)), fit=None))  # rejected fit
+    gp = planner.learner.gp
+    assert gp.noise_var.tolist() == pytest.approx([0.002**2, 0.03**2]) and planner.learner.points == 3

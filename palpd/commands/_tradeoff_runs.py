@@ -17,16 +17,34 @@ def on_target(m: dict) -> bool:
                                           and m["min_iou"] >= TARGET["iou"])))
 
 
-def _scan_until(scene, seed: int, settings, planner, lumps_now) -> dict:
-    """Scan to the end; note the first palpation whose estimate meets the targets."""
-    bench = open_simulated_bench(settings, scene, seed=seed)
-    truth, t0, first = truth_lumps(scene), bench.clock.now(), {}
+class _UntilOnTarget:
+    """A planner that stops as soon as a check says the targets are met (lump scenes only: on a
+    no-lump scene the run goes on to its end, to count the false lumps it grows)."""
 
-    def progress(done, _total, _probe):
-        if not first and on_target(metrics.compare(truth, [l.as_dict() for l in lumps_now()])):
+    def __init__(self, planner, stop) -> None:
+        self.planner, self.stop = planner, stop
+        self.expected_total = planner.expected_total
+
+    def next_probe(self):
+        return None if self.stop() else self.planner.next_probe()
+
+    def observe(self, probe) -> None:
+        self.planner.observe(probe)
+
+
+def _scan_until(scene, seed: int, settings, planner, lumps_now) -> dict:
+    """Scan until the estimate meets the targets (or the plan ends); lumps_now(probes) is the estimate so far."""
+    bench = open_simulated_bench(settings, scene, seed=seed)
+    truth, t0, first, probes = truth_lumps(scene), bench.clock.now(), {}, []
+
+    def progress(done, _total, probe):
+        probes.append(probe)
+        if not first and on_target(metrics.compare(truth, [l.as_dict() for l in lumps_now(probes)])):
             first.update(palpations=done, robot_time_s=round(bench.clock.now() - t0, 2))
 
-    report = run_scan(bench, settings, planner, progress)
+    report = run_scan(bench, settings, _UntilOnTarget(planner, lambda: bool(first) and bool(truth)), progress)
+    if hasattr(planner, "lumps"):
+        report["lumps"] = [l.as_dict() for l in planner.lumps()]
     final = metrics.compare(truth, report["lumps"])
     return {"scene": scene.name, "seed": seed, "lumps_true": len(truth), "palpations": first.get("palpations"),
             "robot_time_s": first.get("robot_time_s"), "false_lumps": final["false_lumps"],
@@ -36,21 +54,19 @@ def _scan_until(scene, seed: int, settings, planner, lumps_now) -> dict:
 def first_on_target_active(scene, seed: int) -> dict:
     settings = Settings().updated(scan={"strategy": "active"}, learner={"confidence": 0.99})
     planner = plan("active", scene.tissue.size_mm, BUDGET, seed, settings)
-    return {"strategy": "active", **_scan_until(scene, seed, settings, planner, planner.lumps)}
+    return {"strategy": "active", **_scan_until(scene, seed, settings, planner, lambda _probes: planner.lumps())}
 
 
 def first_on_target_random(scene, seed: int) -> dict:
     settings = Settings()
     planner = plan("random", scene.tissue.size_mm, BUDGET, seed)
-    seen = planner.points
 
-    def lumps_now():
-        done = planner._next
-        return estimate_lumps(seen[:done], [k for k in _stiffness[:done]], settings.scan.min_contrast) if done else []
+    def lumps_now(probes):
+        """The §3.4-style estimate a scan report gives, from the fitted probes so far."""
+        good = [p for p in probes if p.fit is not None]
+        return estimate_lumps([p.record.xy_mm for p in good], [p.stiffness_n_per_mm for p in good],
+                              settings.scan.min_contrast) if good else []
 
-    _stiffness: list = []
-    original = planner.observe
-    planner.observe = lambda probe: (_stiffness.append(probe.stiffness_n_per_mm or 0.0), original(probe))
     return {"strategy": "random", **_scan_until(scene, seed, settings, planner, lumps_now)}
 
 

@@ -15,6 +15,8 @@ def add_parser(subparsers):
     scan.add_argument("--max-palpations", type=int, metavar="N")
     scan.add_argument("--confidence", type=float, metavar="P", help="stopping confidence (active strategy)")
     scan.add_argument("--seed", type=int, metavar="N")
+    scan.add_argument("--train", metavar="FILE.csv",
+                      help="labelled dataset (tumor column): learn the lump threshold from it (active strategy)")
     scan.add_argument("--depth-mm", type=float, metavar="D", help="indentation depth")
     scan.add_argument("--speed-mm-s", type=float, metavar="V", help="indentation speed")
     scan.add_argument("--report", metavar="FILE.json")
@@ -34,10 +36,12 @@ def run(args) -> int:
 
     if args.max_palpations is not None and args.max_palpations < 1:
         raise UsageError("--max-palpations must be at least 1")
+    if args.train is not None and args.strategy != "active":
+        raise UsageError("--train teaches the active strategy's threshold; use it with --strategy active")
     settings = load_settings(args.config).updated(
         scan={"strategy": args.strategy, "max_palpations": args.max_palpations, "seed": args.seed},
         palpation={"depth_mm": args.depth_mm, "speed_mm_s": args.speed_mm_s},
-        learner={"confidence": args.confidence},
+        learner={"confidence": args.confidence, "training_set": args.train},
     )
     scene = load_scene(args.scene)
     s = settings.scan

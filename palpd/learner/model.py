@@ -17,15 +17,16 @@ from palpd.estimate import LumpEstimate
 from palpd.learner import acquisition
 from palpd.learner.gp import Hyper, IncrementalGP, fit_hyper
 from palpd.learner.lumps import Map, find_lumps
-from palpd.learner.threshold import Levels, levels, tau_field
+from palpd.learner.threshold import Levels, levels, lump_points, supervised_levels, tau_field
 
 EARLY_REFIT_POINTS = 20  # below this a refit costs next to nothing and the kernel still moves a lot
 
 
 class Learner:
     def __init__(self, size_mm: tuple[float, float], settings, min_contrast: float = 0.3, seed: int = 0,
-                 travel_mm_per_palpation: float = 100.0) -> None:
+                 travel_mm_per_palpation: float = 100.0, supervised_tau_n_per_mm: float | None = None) -> None:
         self.settings = settings
+        self.supervised_tau_n_per_mm = supervised_tau_n_per_mm  # None: τ from the data (unsupervised)
         self.min_contrast = min_contrast
         self.travel_mm_per_palpation = travel_mm_per_palpation
         half_w, half_h = size_mm[0] / 2.0, size_mm[1] / 2.0
@@ -53,11 +54,16 @@ class Learner:
             return
         sd = sd_n_per_mm if math.isfinite(sd_n_per_mm) and sd_n_per_mm > 0 else 0.0
         self.gp.add(xy, stiffness_n_per_mm, sd * sd)
-        new_levels = levels(self.gp.y, self.min_contrast)
+        new_levels = self._levels()
         if self._refit_pays(new_levels):
             self._refit(new_levels)
         self.levels = new_levels
         self._update_map()
+
+    def _levels(self) -> Levels:
+        if self.supervised_tau_n_per_mm is None:
+            return levels(self.gp.y, self.min_contrast)
+        return supervised_levels(self.gp.y, np.sqrt(self.gp.noise_var), self.supervised_tau_n_per_mm)
 
     def _refit_pays(self, new: Levels) -> bool:
         n = self.gp.n
@@ -128,5 +134,5 @@ class Learner:
         shape = (len(self.ys), len(self.xs))
         grid_map = Map(self.xs, self.ys, self.gp.mean.reshape(shape), self.gp.std().reshape(shape),
                        self._tau.reshape(shape), self.gp.hyper.length_mm)
-        stiff = self.gp.y > self.levels.tau_n_per_mm
+        stiff = lump_points(self.gp.y, np.sqrt(self.gp.noise_var), self.levels)
         return find_lumps(grid_map, self.gp.xy[stiff])

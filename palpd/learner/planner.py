@@ -2,8 +2,18 @@
 from __future__ import annotations
 
 from palpd.learner.model import Learner
+from palpd.learner.training import supervised_tau
 
 TRAVEL_OVERHEAD_S = 0.25  # settling and the tare-free transitions around each palpation
+
+
+def make_learner(settings, size_mm, seed: int) -> Learner:
+    """The learner for these settings: travel weighed in palpations, τ supervised when a training set is given."""
+    p = settings.palpation
+    training_set = settings.learner.training_set
+    tau = supervised_tau(training_set) if training_set else None
+    return Learner(size_mm, settings.learner, settings.scan.min_contrast, seed,
+                   p.travel_speed_mm_s * palpation_time_s(p), tau)
 
 
 def palpation_time_s(palpation) -> float:
@@ -17,11 +27,9 @@ class ActivePlanner:
     """Asks the learner where to go and tells it what each palpation found."""
 
     def __init__(self, size_mm, settings, max_palpations: int, seed: int = 0) -> None:
-        p = settings.palpation
         self.max_palpations = max_palpations
         self.expected_total = max_palpations
-        self.learner = Learner(size_mm, settings.learner, settings.scan.min_contrast, seed,
-                               travel_mm_per_palpation=p.travel_speed_mm_s * palpation_time_s(p))
+        self.learner = make_learner(settings, size_mm, seed)
 
     def next_probe(self) -> tuple[float, float] | None:
         return self.learner.next_probe(self.max_palpations)

@@ -13,8 +13,7 @@ from pydantic import ValidationError
 
 from drivers.errors import describe_validation_error
 from palpd.bus.messages import Estimate, LumpMsg, Stiffness
-from palpd.learner.model import Learner
-from palpd.learner.planner import palpation_time_s
+from palpd.learner.planner import make_learner
 
 POLL_MS = 200
 
@@ -22,9 +21,7 @@ POLL_MS = 200
 class LearnerService:
     def __init__(self, settings, context: zmq.Context | None = None) -> None:
         self.settings = settings
-        p = settings.palpation
-        self.learner = Learner(settings.tissue.size_mm, settings.learner, settings.scan.min_contrast,
-                               settings.scan.seed, p.travel_speed_mm_s * palpation_time_s(p))
+        self.learner = make_learner(settings, settings.tissue.size_mm, settings.scan.seed)
         self.context = context or zmq.Context.instance()
         self.sub = self.context.socket(zmq.SUB)
         self.sub.setsockopt(zmq.LINGER, 0)

@@ -14,6 +14,10 @@ its own peak: its 50 % (half-height) boundary, so a soft lump next to a hard
 one is neither shrunk nor grown by the other. Without contrast, τ is the
 softest stiffness that would count as a lump, so P(lump) tells how sure we
 are that none hides where we have not probed.
+
+Supervised (τ learned from a training set, see training.py), τ is that one
+value everywhere, and there is a lump only where a point lies above it by more
+than its own noise could explain (same false-lump rate).
 """
 from __future__ import annotations
 
@@ -33,6 +37,7 @@ class Levels:
     tissue_n_per_mm: float
     tau_n_per_mm: float  # global τ: lump detection
     contrast: bool       # the contrast test found real lump and tissue groups
+    supervised: bool = False  # τ came from a training set: one τ everywhere, no per-lump half-height
 
 
 def levels(k: np.ndarray, min_contrast: float) -> Levels:
@@ -43,6 +48,24 @@ def levels(k: np.ndarray, min_contrast: float) -> Levels:
         return Levels(tissue, tissue * (1.0 + min_contrast), False)
     tissue, _ = _tissue_level(soft)
     return Levels(tissue, 0.5 * (tissue + float(np.median(stiff))), True)
+
+
+def supervised_levels(k: np.ndarray, sd: np.ndarray, tau_n_per_mm: float) -> Levels:
+    """Levels at a τ learned from a training set; contrast when some point is surely above it."""
+    k, sd = np.asarray(k, dtype=float), np.asarray(sd, dtype=float)
+    below = k[k <= tau_n_per_mm]
+    tissue = float(np.median(below)) if below.size else min(float(k.min()), tau_n_per_mm)
+    return Levels(tissue, tau_n_per_mm, bool(np.any(_surely_above(k, sd, tau_n_per_mm))), supervised=True)
+
+
+def lump_points(k: np.ndarray, sd: np.ndarray, lv: Levels) -> np.ndarray:
+    """Which observed points count as evidence of a lump (a region needs one to be reported)."""
+    return _surely_above(k, sd, lv.tau_n_per_mm) if lv.supervised else np.asarray(k) > lv.tau_n_per_mm
+
+
+def _surely_above(k: np.ndarray, sd: np.ndarray, tau_n_per_mm: float) -> np.ndarray:
+    z = float(ndtri(1.0 - FALSE_LUMP_RATE / max(np.size(k), 1)))
+    return np.asarray(k) - z * np.asarray(sd) > tau_n_per_mm
 
 
 def _tissue_level(soft: np.ndarray) -> tuple[float, float]:
@@ -89,7 +112,7 @@ def tau_field(mean: np.ndarray, lv: Levels, reach_cells: float, obs_cells: np.nd
     model's maximum: a GP overshoots a flat top with a sharp edge.
     """
     tau = np.full(mean.shape, lv.tau_n_per_mm)
-    if not lv.contrast:
+    if not lv.contrast or lv.supervised:
         return tau
     labels, count = ndimage.label(mean > lv.tau_n_per_mm, EIGHT_CONNECTED)
     if count == 0:
