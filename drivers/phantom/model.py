@@ -198,8 +198,9 @@ class ThermalLimit:
 
     def __init__(self, nominal_a: float = NOMINAL_CURRENT_A, peak_a: float = PEAK_CURRENT_A,
                  peak_duration_s: float = PEAK_DURATION_S) -> None:
-        self.nominal_a, self.peak_a = nominal_a, peak_a
-        self.budget_a2s = (peak_a * peak_a - nominal_a * nominal_a) * peak_duration_s
+        # A peak configured below nominal is a hard cap: never let the nominal rating exceed it.
+        self.nominal_a, self.peak_a = min(nominal_a, peak_a), peak_a
+        self.budget_a2s = (peak_a * peak_a - self.nominal_a * self.nominal_a) * peak_duration_s
         self.heat_a2s = [0.0, 0.0, 0.0]
 
     def limit(self, currents_a: Vec3, dt_s: float) -> Vec3:
