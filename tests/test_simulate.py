@@ -40,7 +40,7 @@ def test_scan_runs_against_a_separately_started_simulator(simulator, tmp_path, r
     (tmp_path / "remote.toml").write_text(
         f'[robot]\nurl = "{simulator["bridge"]}"\ntimeout_s = 0.2\n'
         f'[sensor]\nbackend = "{simulator["netft"]}"\ntimeout_s = 0.5\nstale_after_s = 0.1\n'
-        '[safety]\nmax_tick_gap_s = 0.5\nmax_tip_speed_mm_s = 1500.0\n')  # a descheduled simulator overshoots
+        '[safety]\nmax_tick_gap_s = 0.5\nmax_tip_speed_mm_s = 1500.0\nmax_joint_speed_rad_s = 200.0\n')  # descheduled processes overshoot
     assert simulator["bridge"].startswith("socket://127.0.0.1:")
     result = run_cli("scan", "--scene", SCENES / "paper.toml", "--config", "remote.toml",
                      "--max-palpations", "1", "--report", "r.json")
