@@ -116,3 +116,15 @@ def test_opening_an_absent_device_fails_at_once_naming_it(tmp_path):
         with pytest.raises(DriverInitializationError, match=fragment):
             open_bridge_robot(url, timeout_s=TIMEOUT_S)
         assert time.monotonic() - started < 1.0
+
+
+def test_bench_drivers_prints_both_paths_side_by_side(run_cli):
+    import json
+
+    from conftest import SCENES
+
+    result = run_cli("bench", "drivers", "--scene", SCENES / "paper.toml", "--ticks", "200", "--json")
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout)
+    assert set(figures) == {"sim:// + DAQ", "sim-direct"}
+    assert all(f["ticks"] == 200 and f["cpu_us_per_tick"] > 0 for f in figures.values())

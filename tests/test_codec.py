@@ -63,6 +63,18 @@ def test_a_corrupted_frame_is_rejected_and_its_neighbours_survive(items, data):
     assert decoder.rejected_frames >= 1
 
 
+@given(st.lists(st.tuples(st.binary(max_size=12), frames), max_size=6), st.binary(max_size=12))
+@settings(max_examples=300)
+def test_whole_chunks_decode_exactly_as_byte_by_byte(items, tail):
+    """The in-place fast path for whole chunks and the buffered path agree on frames and on every counter."""
+    stream = b"".join(garbage + raw for garbage, (raw, _) in items) + tail
+    whole, trickled = codec.FrameDecoder(), codec.FrameDecoder()
+    at_once = whole.feed(stream)
+    one_by_one = [frame for i in range(len(stream)) for frame in trickled.feed(stream[i:i + 1])]
+    assert at_once == one_by_one
+    assert (whole.rejected_frames, whole.discarded_bytes) == (trickled.rejected_frames, trickled.discarded_bytes)
+
+
 def test_a_truncated_frame_waits_for_the_rest():
     raw = codec.encode_command(7, codec.Command(True, False, 250, (100, -200, 300)))
     decoder = codec.FrameDecoder()

@@ -1,7 +1,9 @@
 """palpd simulate as its own process, and palpd scan against it over socket:// and Net F/T."""
 import json
+import os
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -10,11 +12,15 @@ from conftest import SCENES, assert_one_line_error
 
 @pytest.fixture
 def simulator(tmp_path):
-    """A `palpd simulate` process; yields its endpoint lines; terminated afterwards."""
+    """A `palpd simulate` process with the bridge on TCP and Net F/T; yields its endpoint lines."""
+    yield from serve_simulator(tmp_path, "--bridge", "tcp://127.0.0.1:0", "--netft", "127.0.0.1:0")
+
+
+def serve_simulator(cwd, *options):
+    """Start `palpd simulate`, yield {kind: url} once it says ready, terminate it afterwards."""
     process = subprocess.Popen(
-        [sys.executable, "-m", "palpd", "simulate", "--scene", str(SCENES / "paper.toml"),
-         "--bridge", "tcp://127.0.0.1:0", "--netft", "127.0.0.1:0"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path)
+        [sys.executable, "-m", "palpd", "simulate", "--scene", str(SCENES / "paper.toml"), *options],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd)
     endpoints = {}
     try:
         for line in process.stdout:
@@ -34,7 +40,7 @@ def test_scan_runs_against_a_separately_started_simulator(simulator, tmp_path, r
     (tmp_path / "remote.toml").write_text(
         f'[robot]\nurl = "{simulator["bridge"]}"\ntimeout_s = 0.2\n'
         f'[sensor]\nbackend = "{simulator["netft"]}"\ntimeout_s = 0.5\nstale_after_s = 0.1\n'
-        '[safety]\nmax_tick_gap_s = 0.5\nmax_tip_speed_mm_s = 2000.0\n')
+        '[safety]\nmax_tick_gap_s = 0.5\nmax_tip_speed_mm_s = 1500.0\nmax_joint_speed_rad_s = 200.0\n')  # descheduled processes overshoot
     assert simulator["bridge"].startswith("socket://127.0.0.1:")
     result = run_cli("scan", "--scene", SCENES / "paper.toml", "--config", "remote.toml",
                      "--max-palpations", "1", "--report", "r.json")
@@ -44,6 +50,29 @@ def test_scan_runs_against_a_separately_started_simulator(simulator, tmp_path, r
     (probe,) = report["probes"]
     assert probe["xy_mm"] == pytest.approx([0.0, 0.0], abs=0.3) and 0.4 < probe["stiffness_n_per_mm"] < 0.9  # on the lump, felt remotely
     assert report["wall_time_s"] > 0.8 * report["robot_time_s"]  # it really ran on the wall clock
+
+
+@pytest.fixture
+def pty_simulator(tmp_path):
+    yield from serve_simulator(tmp_path, "--bridge", "pty")
+
+
+def test_simulate_serves_the_bridge_on_a_pty_that_a_serial_client_drives(pty_simulator):
+    from drivers.interfaces import STATUS_AMPLIFIERS_ON
+    from drivers.phantom.bridge import open_bridge_robot
+
+    url = pty_simulator["bridge"]
+    assert url.startswith("serial:///dev/") and os.path.exists(url[len("serial://"):])  # the printed device path
+    with open_bridge_robot(url, timeout_s=0.5) as robot:  # pyserial opens the pty as a serial port
+        parked = robot.read()
+        robot.enable()
+        robot.write((0.0, 0.3, 0.0))
+        time.sleep(0.05)
+        moved = robot.read()
+        assert moved.status & STATUS_AMPLIFIERS_ON and moved.device_t_s > parked.device_t_s
+        assert moved.counts != parked.counts  # the simulated arm answered the current on joint 2
+        robot.disable()
+        assert robot.read().status & STATUS_AMPLIFIERS_ON == 0
 
 
 def test_simulate_refuses_a_bad_bridge_option(run_cli):

@@ -59,8 +59,9 @@ class BridgeRobot(Robot):
             self.transport.close()
 
     def _send_command(self, enable: bool, currents_a: model.Vec3, clear_faults: bool = False) -> None:
-        milliamps = tuple(round(1000.0 * c) for c in currents_a)
-        command = codec.Command(enable, clear_faults, self.watchdog_ms, milliamps)  # type: ignore[arg-type]
+        i0, i1, i2 = currents_a
+        milliamps = (round(1000.0 * i0), round(1000.0 * i1), round(1000.0 * i2))
+        command = codec.Command(enable, clear_faults, self.watchdog_ms, milliamps)
         self._exchange(codec.encode_command(self._next_seq(), command))
 
     def _next_seq(self) -> int:
@@ -69,20 +70,21 @@ class BridgeRobot(Robot):
 
     def _exchange(self, frame: bytes) -> codec.State:
         """Send one frame and wait for the STATE that answers it."""
-        self.transport.write(frame)
-        deadline = time.monotonic() + self.timeout_s
-        while True:
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                raise DriverTimeoutError(f"{self.transport.url}: the bridge did not answer within "
-                                         f"{self.timeout_s * 1000:.0f} ms (unplugged or stalled?)")
-            for received in self.decoder.feed(self.transport.read(remaining)):
+        transport = self.transport
+        transport.write(frame)
+        remaining = self.timeout_s
+        deadline = time.monotonic() + remaining
+        while remaining > 0:
+            for received in self.decoder.feed(transport.read(remaining)):
                 if received.kind != codec.STATE:
                     continue
                 state = codec.decode_state(received.payload)
                 if state.ack_seq == self._seq:
                     self.state = state
                     return state
+            remaining = deadline - time.monotonic()
+        raise DriverTimeoutError(f"{transport.url}: the bridge did not answer within "
+                                 f"{self.timeout_s * 1000:.0f} ms (unplugged or stalled?)")
 
 
 def open_bridge_robot(url: str, clock=None, watchdog_s: float = 0.25, timeout_s: float = 0.05,

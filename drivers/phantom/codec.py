@@ -26,6 +26,9 @@ COMMAND_PAYLOAD = struct.Struct("<BH3h")  # flags, watchdog ms (0 = keep), curre
 STATE_PAYLOAD = struct.Struct("<3iBIHH")  # counts, status, device time in us (wraps), ack sequence, rx errors
 PAYLOAD_BYTES = {COMMAND: COMMAND_PAYLOAD.size, READ: 0, STATE: STATE_PAYLOAD.size}
 MAX_CURRENT_MA = 32767
+# Header and payload packed in one call: both ends build a frame every servo tick.
+_COMMAND_BODY = struct.Struct(HEADER.format + COMMAND_PAYLOAD.format[1:])
+_STATE_BODY = struct.Struct(HEADER.format + STATE_PAYLOAD.format[1:])
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,20 +61,30 @@ def crc16(data: bytes) -> int:
 
 
 def encode_frame(kind: int, seq: int, payload: bytes = b"") -> bytes:
-    body = HEADER.pack(SYNC, kind, len(payload), seq & 0xFFFF) + payload
-    return body + CRC.pack(crc16(body[2:]))
+    return _sealed(HEADER.pack(SYNC, kind, len(payload), seq & 0xFFFF) + payload)
+
+
+def _sealed(body: bytes) -> bytes:
+    """body + its CRC (over everything after the sync word)."""
+    return body + CRC.pack(binascii.crc_hqx(body[2:], 0xFFFF))
+
+
+def _clamp_ma(current: int) -> int:
+    return MAX_CURRENT_MA if current > MAX_CURRENT_MA else -MAX_CURRENT_MA if current < -MAX_CURRENT_MA else current
 
 
 def encode_command(seq: int, command: Command) -> bytes:
     flags = (FLAG_ENABLE if command.enable else 0) | (FLAG_CLEAR_FAULTS if command.clear_faults else 0)
-    currents = tuple(max(-MAX_CURRENT_MA, min(MAX_CURRENT_MA, int(c))) for c in command.currents_ma)
-    return encode_frame(COMMAND, seq, COMMAND_PAYLOAD.pack(flags, command.watchdog_ms, *currents))
+    i0, i1, i2 = command.currents_ma
+    return _sealed(_COMMAND_BODY.pack(SYNC, COMMAND, COMMAND_PAYLOAD.size, seq & 0xFFFF, flags, command.watchdog_ms,
+                                      _clamp_ma(int(i0)), _clamp_ma(int(i1)), _clamp_ma(int(i2))))
 
 
 def encode_state(seq: int, state: State) -> bytes:
-    payload = STATE_PAYLOAD.pack(*state.counts, state.status, state.device_time_us & 0xFFFFFFFF,
-                                 state.ack_seq & 0xFFFF, state.rx_errors & 0xFFFF)
-    return encode_frame(STATE, seq, payload)
+    c0, c1, c2 = state.counts
+    return _sealed(_STATE_BODY.pack(SYNC, STATE, STATE_PAYLOAD.size, seq & 0xFFFF, c0, c1, c2, state.status,
+                                    state.device_time_us & 0xFFFFFFFF, state.ack_seq & 0xFFFF,
+                                    state.rx_errors & 0xFFFF))
 
 
 def decode_command(payload: bytes) -> Command:
@@ -93,11 +106,31 @@ class FrameDecoder:
         self.rejected_frames = 0
 
     def feed(self, data: bytes) -> list[Frame]:
-        self._buffer += data
         frames: list[Frame] = []
-        while (frame := self._next_frame()) is not None:
-            frames.append(frame)
+        offset = 0 if self._buffer else self._whole_frames(bytes(data), frames)
+        if offset < len(data):
+            self._buffer += data[offset:] if offset else data
+            while (frame := self._next_frame()) is not None:
+                frames.append(frame)
         return frames
+
+    @staticmethod
+    def _whole_frames(data: bytes, frames: list[Frame]) -> int:
+        """Fast path for a healthy link: valid frames back to back from the first byte, parsed in place.
+
+        Stops at the first thing that is not a whole valid frame and returns its offset; the
+        buffered path takes over from there, so garbage and partial frames are handled as always.
+        """
+        offset, size, header_bytes = 0, len(data), HEADER.size
+        while size - offset >= header_bytes:
+            sync, kind, length, seq = HEADER.unpack_from(data, offset)
+            end = offset + header_bytes + length
+            if sync != SYNC or PAYLOAD_BYTES.get(kind) != length or end + CRC.size > size \
+                    or CRC.unpack_from(data, end)[0] != binascii.crc_hqx(data[offset + 2:end], 0xFFFF):
+                break
+            frames.append(Frame(kind, seq, data[offset + header_bytes:end]))
+            offset = end + CRC.size
+        return offset
 
     def _next_frame(self) -> Frame | None:
         buffer = self._buffer

@@ -109,12 +109,17 @@ def gravity_torques(q: Vec3) -> Vec3:
     )
 
 
+_R0, _R1, _R2 = RAD_PER_COUNT
+
+
 def counts_to_angles(counts: tuple[int, int, int]) -> Vec3:
-    return tuple(c * r for c, r in zip(counts, RAD_PER_COUNT))  # type: ignore[return-value]
+    c0, c1, c2 = counts
+    return (c0 * _R0, c1 * _R1, c2 * _R2)
 
 
 def angles_to_counts(q: Vec3) -> tuple[int, int, int]:
-    return tuple(int(round(a / r)) for a, r in zip(q, RAD_PER_COUNT))  # type: ignore[return-value]
+    q0, q1, q2 = q
+    return (round(q0 / _R0), round(q1 / _R1), round(q2 / _R2))
 
 
 def torque_per_amp(joint: int) -> float:
@@ -130,8 +135,12 @@ def torques_to_currents(tau: Vec3, limit_a: float = PEAK_CURRENT_A) -> Vec3:
     return tuple(out)  # type: ignore[return-value]
 
 
+_NM_PER_A = tuple(torque_per_amp(joint) for joint in range(3))
+
+
 def currents_to_torques(currents: Vec3) -> Vec3:
-    return tuple(i * torque_per_amp(j) for j, i in enumerate(currents))  # type: ignore[return-value]
+    i0, i1, i2 = currents
+    return (i0 * _NM_PER_A[0], i1 * _NM_PER_A[1], i2 * _NM_PER_A[2])
 
 
 def link2_rotation(q: Vec3) -> tuple[Vec3, Vec3, Vec3]:
@@ -198,8 +207,9 @@ class ThermalLimit:
 
     def __init__(self, nominal_a: float = NOMINAL_CURRENT_A, peak_a: float = PEAK_CURRENT_A,
                  peak_duration_s: float = PEAK_DURATION_S) -> None:
-        self.nominal_a, self.peak_a = nominal_a, peak_a
-        self.budget_a2s = (peak_a * peak_a - nominal_a * nominal_a) * peak_duration_s
+        # A peak configured below nominal is a hard cap: never let the nominal rating exceed it.
+        self.nominal_a, self.peak_a = min(nominal_a, peak_a), peak_a
+        self.budget_a2s = (peak_a * peak_a - self.nominal_a * self.nominal_a) * peak_duration_s
         self.heat_a2s = [0.0, 0.0, 0.0]
 
     def limit(self, currents_a: Vec3, dt_s: float) -> Vec3:

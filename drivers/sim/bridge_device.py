@@ -71,7 +71,8 @@ class BridgeDevice:
         self.advance(self.world.clock.now())
         self.resting = False
         self.world.amplifiers_on = True
-        self.world.currents_a = tuple(ma / 1000.0 for ma in command.currents_ma)
+        i0, i1, i2 = command.currents_ma
+        self.world.currents_a = (i0 / 1000.0, i1 / 1000.0, i2 / 1000.0)
 
     def _amplifiers_off(self) -> None:
         self.world.currents_a = NO_FORCE

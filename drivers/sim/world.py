@@ -55,7 +55,7 @@ class SimWorld:
         return self.faults.status(bits)
 
     def encoder_counts(self) -> tuple[int, int, int]:
-        return self.faults.counts(model.angles_to_counts(tuple(self.arm.q)))  # type: ignore[arg-type]
+        return self.faults.counts(model.angles_to_counts(self.arm.q))  # type: ignore[arg-type]
 
     def sensor_sample(self) -> ForceSample:
         """What an ideal DAQ in force units would report (the sim-direct path, no wire format)."""

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import importlib
 
-BENCHMARKS: list[str] = ["loop", "learner", "tradeoff"]
+BENCHMARKS: list[str] = ["loop", "learner", "tradeoff", "drivers"]
 
 
 def add_parser(subparsers):
