@@ -32,6 +32,8 @@ class ModelFit:
 
 def fit_model(model: Model, samples: Samples, reference_depth_mm: float) -> ModelFit:
     d, f, rate = samples.scaled()
+    # Read the tangent where there is data: a curved model's slope beyond the deepest sample is a guess.
+    reference_depth_mm = min(reference_depth_mm, float(samples.depth_mm.max()))
     if model.needs_rate and rate is None:
         raise FitRejected(f"model {model.name} needs the indentation rate", "bad_shape")
     theta = _solve_linear(model, d, f, rate) if model.linear else _solve_nonlinear(model, d, f, rate)
