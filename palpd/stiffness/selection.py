@@ -11,6 +11,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from palpd.stiffness.fit import ModelFit, fit_model
 from palpd.stiffness.models import MODELS, candidates
 from palpd.stiffness.samples import FitRejected, check_rise, prepare
@@ -40,8 +42,12 @@ class StiffnessResult:
 
 
 def information_criterion(fit: ModelFit, parameters: int, criterion: str) -> float:
-    n, p = fit.samples, parameters + 1  # + 1: the noise variance is estimated too
-    log_likelihood_term = n * math.log(max(fit.rss_scaled / n, 1e-300))
+    return _criterion(fit.rss_scaled, fit.samples, parameters, criterion)
+
+
+def _criterion(rss: float, n: int, parameters: int, criterion: str) -> float:
+    p = parameters + 1  # + 1: the noise variance is estimated too
+    log_likelihood_term = n * math.log(max(rss / n, 1e-300))
     if criterion == "bic":
         return log_likelihood_term + p * math.log(n)
     correction = 2.0 * p * (p + 1) / (n - p - 1) if n - p - 1 > 0 else math.inf
@@ -65,7 +71,10 @@ def fit_stiffness(depth_mm, force_n, rate_mm_s=None, saturated=None, model: str 
 
 def _select(samples, criterion: str, reference_depth_mm: float) -> StiffnessResult:
     fits, scores = [], {}
+    curved = _clearly_curved(samples, criterion)
     for candidate in candidates(samples.rate_mm_s is not None):
+        if not (candidate.linear or curved):
+            continue  # a curved model cannot win where even a parabola does no better than a line
         if candidate.size >= samples.n - 1:
             continue  # not enough samples to tell this model's parameters apart
         try:
@@ -82,3 +91,22 @@ def _select(samples, criterion: str, reference_depth_mm: float) -> StiffnessResu
     if chosen.stiffness_n_per_mm <= 0:
         raise FitRejected(f"model {chosen.model} gives no positive stiffness", "no_rise")
     return StiffnessResult(chosen, criterion, scores)
+
+
+def _clearly_curved(samples, criterion: str) -> bool:
+    """Whether a parabola beats a straight line by the same margin selection asks of any richer model.
+
+    A cheap linear screen: the curved models need iterative fits (most of a palpation's CPU time),
+    and on a straight trace they could not be chosen anyway.
+    """
+    d, f, _ = samples.scaled()
+    n = samples.n
+    if n < 5:
+        return True
+    rss = []
+    for columns in ((np.ones_like(d), d), (np.ones_like(d), d, d * d)):
+        design = np.column_stack(columns)
+        solution, *_ = np.linalg.lstsq(design, f, rcond=None)
+        residual = f - design @ solution
+        rss.append(float(residual @ residual))
+    return _criterion(rss[1], n, 3, criterion) < _criterion(rss[0], n, 2, criterion) - CLEARLY_BETTER
