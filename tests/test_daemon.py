@@ -8,6 +8,7 @@ import pytest
 
 from conftest import assert_one_line_error
 from daemon_client import Daemon, receive
+from mcap_official import read_closed, read_streaming
 from palpd.bus.messages import EVENT_MODELS
 from palpd.daemon.mcap import read_messages
 from palpd.daemon.session import read_journal
@@ -63,6 +64,12 @@ def test_a_client_drives_a_scan_and_gets_the_same_estimate_by_request(daemon):
     recorded = read_messages(session / "recording-1.mcap")
     assert [p for t, p in recorded if t == "estimate"][-1] == final
     assert sum(t == "palpation" for t, _ in recorded) == 25
+    official = read_closed(session / "recording-1.mcap")  # the official reader agrees, schemas and all
+    assert [(t, p) for t, p, _ in official["messages"]] == recorded
+    assert set(official["schemas"]) >= set(EVENT_MODELS)
+    for topic, payload, _ in official["messages"]:
+        if topic in EVENT_MODELS:
+            EVENT_MODELS[topic].model_validate(payload)
     replayed = subprocess.run([sys.executable, "-m", "palpd", "replay", str(session)], capture_output=True, text=True)
     assert replayed.returncode == 0 and "the recorded estimate is reproduced" in replayed.stdout, replayed.stdout
 
@@ -96,12 +103,16 @@ def test_kill_9_mid_scan_then_restart_reloads_every_journaled_palpation_and_fini
     (session,) = (tmp_path / "state" / "sessions").iterdir()
     journaled = read_journal(session / "journal.jsonl")
     assert 3 <= len(journaled) < 40
+    cut, error = read_streaming(session / "recording-1.mcap")  # what the official reader makes of the cut file
+    assert cut == read_messages(session / "recording-1.mcap") and ("status", cut[0][1]) == cut[0]
     second = Daemon(tmp_path).start()
     try:
         status = second.wait_for(lambda s: s["state"] == "ready", what="ready after restart")
         assert status["resumable"] and status["palpations"] == len(journaled)
         assert second.call("estimate.get")["estimate"]["points"] == sum(
             e["stiffness_n_per_mm"] is not None for e in journaled)
+        sealed = read_closed(session / "recording-1.mcap")  # the restart ended the crashed file properly
+        assert [(t, p) for t, p, _ in sealed["messages"]] == cut
         subscriber = second.subscriber("estimate")
         reply = second.call("scan.start", {"resume": True})
         assert reply["ok"] and reply["already_done"] == len(journaled), reply

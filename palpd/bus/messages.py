@@ -77,6 +77,20 @@ EVENT_MODELS: dict[str, type[Event]] = {
 }
 
 
+class RawSample(BaseModel):
+    """One servo tick as recorded: MCAP channel `samples` only, never on the bus (1 kHz stays off the network)."""
+
+    model_config = ConfigDict(extra="forbid")
+    t: float  # robot time of the tick, s
+    tip_mm: tuple[float, float, float]
+    force_n: tuple[float, float, float]  # tissue frame, bias-compensated
+    normal_force_n: float
+    status: int = 0  # the robot's status bits
+
+
+SAMPLES_CHANNEL = "samples"
+
+
 class _Args(BaseModel):
     """Command arguments, validated from JSON in strict mode: "5" is not a number, 5 is."""
 
@@ -141,3 +155,9 @@ def json_schemas() -> dict[str, dict]:
     for name, model in COMMAND_ARGS.items():
         schemas[f"{name}.args"] = model.model_json_schema()
     return schemas
+
+
+def recording_schemas() -> dict[str, dict]:
+    """The JSON Schema of every MCAP channel: the event topics and the raw samples."""
+    schemas = {topic: model.model_json_schema() for topic, model in EVENT_MODELS.items()}
+    return schemas | {SAMPLES_CHANNEL: RawSample.model_json_schema()}

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from palpd.daemon.jobs import ProbeJob, ScanJob, region_plan, region_problem, reloaded_plan
 from palpd.daemon.learning import make_estimator
-from palpd.daemon.session import Session
+from palpd.daemon.session import PROBES, Session
 
 ALLOWED_STATES = {
     "status": None, "estimate.get": None,  # None: any state
@@ -71,7 +71,8 @@ def _start(sup, command, planner) -> None:
         palpation={"depth_mm": scan["depth_mm"], "speed_mm_s": scan["speed_mm_s"]})
     sup.job = ScanJob(sup.session, settings, planner, sup.estimator)
     sup.job.stop_reason = None
-    sup.open_recording()
+    sup.close_recording()  # the probes' recording, if single palpations came first
+    sup.open_recording(sup.session)
     sup.worker.submit(sup.job)
     sup.set_state("scanning", f"scan {scan['strategy']}")
     sup.commands.reply(command, session=sup.session.name, expected_total=planner.expected_total,
@@ -104,7 +105,11 @@ def probe_at(sup, command) -> None:
     if problem:
         sup.commands.fail(command, "bad_args", f"probe.at args: point {problem.split(' at ')[1]}")
         return
-    sup.job = ProbeJob(sup.settings, command.args.xy_mm, sup.probes_done)
+    if sup.probe_session is None:
+        sup.probe_session = Session.create(sup.sessions_dir, {"kind": "probe.at"}, status=PROBES)
+    if sup.recording is None:  # recorded until the next scan starts or the daemon stops
+        sup.open_recording(sup.probe_session)
+    sup.job = ProbeJob(sup.settings, command.args.xy_mm, sup.probe_session)
     sup.worker.submit(sup.job)
     sup.set_state("scanning", "probe")
     sup.commands.reply(command, accepted=True)

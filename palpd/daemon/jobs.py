@@ -64,10 +64,10 @@ class ScanJob:
 
 
 class ProbeJob:
-    """One palpation at a point (tares first if the sensor never was); published, not journaled."""
+    """One palpation at a point, journaled (fsync) in the daemon's probes session before it is published."""
 
-    def __init__(self, settings, xy_mm, index: int) -> None:
-        self.settings, self.xy_mm, self.index = settings, xy_mm, index
+    def __init__(self, settings, xy_mm, session) -> None:
+        self.settings, self.xy_mm, self.session = settings, xy_mm, session
 
     def __call__(self, worker) -> None:
         p, servo = self.settings.palpation, worker.bench.servo
@@ -78,7 +78,9 @@ class ProbeJob:
             servo.run(MoveTo((tip[0], tip[1], PARK_HEIGHT_MM), p.travel_speed_mm_s, p.accel_mm_s2))
         finally:
             servo.stop()
-        publish_entry(worker, journal_entry(self.index, probe, worker.bench.clock.now()))
+        entry = journal_entry(len(self.session.entries), probe, worker.bench.clock.now())
+        self.session.journal(entry)
+        publish_entry(worker, entry)
 
 
 def reloaded_plan(session, tissue_size_mm) -> FixedPlan:

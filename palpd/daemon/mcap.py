@@ -2,15 +2,21 @@
 
 Written here rather than adding the `mcap` package: the format needs ~100 lines
 for what palpd records, and the reader must tolerate a file cut short by a
-crash (no DataEnd/Footer), which is exactly what crash recovery reads.
+crash (no DataEnd/Footer), which is exactly what crash recovery reads, and
+`seal` closes such a file so any MCAP reader opens it. The tests check every
+file against the official `mcap` reader.
 Spec: https://mcap.dev/spec — records are opcode (u8), length (u64 LE), content.
 """
 from __future__ import annotations
 
 import json
+import os
 import struct
 import time
 from pathlib import Path
+from typing import Mapping, Sequence
+
+from palpd.bus.messages import SAMPLES_CHANNEL, RawSample
 
 MAGIC = b"\x89MCAP0\r\n"
 OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_DATA_END = 0x01, 0x02, 0x03, 0x04, 0x05, 0x0F
@@ -48,11 +54,28 @@ class McapWriter:
         self._channels[topic] = channel_id
 
     def write(self, topic: str, payload: dict, log_time_s: float | None = None) -> None:
-        ns = int((time.time() if log_time_s is None else log_time_s) * 1e9)
-        header = struct.pack("<HIQQ", self._channels[topic], self._sequence & 0xFFFFFFFF, ns, ns)
-        self._file.write(_record(OP_MESSAGE, header + json.dumps(payload).encode()))
-        self._sequence += 1
+        self._message(topic, json.dumps(payload).encode(), time.time() if log_time_s is None else log_time_s)
         self.flush_if_due()
+
+    def record_samples(self, batch: Sequence[Mapping]) -> None:
+        """Raw servo samples (RawSample-shaped, oldest first), e.g. what the servo ring gathered since the last call.
+
+        Log times keep the samples' robot-time spacing with the newest at now, so
+        they interleave with the events in Foxglove's timeline.
+        """
+        samples = [RawSample.model_validate(sample) for sample in batch]  # a malformed ring entry fails here
+        if not samples:
+            return
+        now_s, newest_t = time.time(), samples[-1].t
+        for sample in samples:
+            self._message(SAMPLES_CHANNEL, sample.model_dump_json().encode(), now_s - (newest_t - sample.t))
+        self.flush_if_due()
+
+    def _message(self, topic: str, data: bytes, log_time_s: float) -> None:
+        ns = int(log_time_s * 1e9)
+        header = struct.pack("<HIQQ", self._channels[topic], self._sequence & 0xFFFFFFFF, ns, ns)
+        self._file.write(_record(OP_MESSAGE, header + data))
+        self._sequence += 1
 
     def flush_if_due(self) -> None:
         if time.monotonic() - self._flushed_at >= FLUSH_INTERVAL_S:
@@ -65,10 +88,42 @@ class McapWriter:
     def close(self) -> None:
         if self._file.closed:
             return
-        self._file.write(_record(OP_DATA_END, struct.pack("<I", 0)))
-        self._file.write(_record(OP_FOOTER, struct.pack("<QQI", 0, 0, 0)))  # no summary section
-        self._file.write(MAGIC)
+        self._file.write(ENDING)
         self._file.close()
+
+
+# DataEnd (no CRC), a Footer without summary section, and the closing magic.
+ENDING = _record(OP_DATA_END, struct.pack("<I", 0)) + _record(OP_FOOTER, struct.pack("<QQI", 0, 0, 0)) + MAGIC
+
+
+def _records(data: bytes):
+    """(opcode, content start, content end) of every complete record up to the Footer."""
+    offset = len(MAGIC)
+    while offset + 9 <= len(data):
+        opcode, length = struct.unpack_from("<BQ", data, offset)
+        start, offset = offset + 9, offset + 9 + length
+        if offset > len(data) or opcode == OP_FOOTER:
+            return
+        yield opcode, start, offset
+
+
+def seal(path: Path) -> bool:
+    """End a recording a crash cut short (torn last record dropped), so any MCAP reader opens it.
+
+    True if the file needed it; a closed file, or one without even its header, is left alone.
+    """
+    data = Path(path).read_bytes()
+    records = list(_records(data)) if data.startswith(MAGIC) else []
+    if data.endswith(ENDING) or not records or records[0][0] != OP_HEADER:
+        return False
+    end = max(stop for opcode, _, stop in records if opcode != OP_DATA_END)
+    with open(path, "r+b") as handle:
+        handle.truncate(end)
+        handle.seek(end)
+        handle.write(ENDING)
+        handle.flush()
+        os.fsync(handle.fileno())
+    return True
 
 
 def read_messages(path: Path) -> list[tuple[str, dict]]:
@@ -78,12 +133,7 @@ def read_messages(path: Path) -> list[tuple[str, dict]]:
         raise ValueError(f"{path}: not an MCAP file")
     topics: dict[int, str] = {}
     messages = []
-    offset = len(MAGIC)
-    while offset + 9 <= len(data):
-        opcode, length = struct.unpack_from("<BQ", data, offset)
-        start, offset = offset + 9, offset + 9 + length
-        if offset > len(data) or opcode == OP_FOOTER:
-            break
+    for opcode, start, offset in _records(data):
         if opcode == OP_CHANNEL:
             channel_id, _ = struct.unpack_from("<HH", data, start)
             (topic_len,) = struct.unpack_from("<I", data, start + 4)

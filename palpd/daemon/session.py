@@ -15,6 +15,7 @@ from palpd.files import write_json
 
 JOURNAL, META = "journal.jsonl", "session.json"
 UNFINISHED = "unfinished"
+PROBES = "probes"  # the status of a session of single palpations (probe.at): never resumed, always journaled
 
 
 def state_directory(configured: str) -> Path:
@@ -31,7 +32,7 @@ class Session:
         self._journal = None
 
     @classmethod
-    def create(cls, sessions_dir: Path, scan_args: dict) -> "Session":
+    def create(cls, sessions_dir: Path, scan_args: dict, status: str = UNFINISHED) -> "Session":
         name = time.strftime("%Y%m%d-%H%M%S")
         path = sessions_dir / name
         suffix = 1
@@ -39,7 +40,7 @@ class Session:
             suffix += 1
             path = sessions_dir / f"{name}-{suffix}"
         path.mkdir(parents=True)
-        session = cls(path, {"name": path.name, "status": UNFINISHED, "scan": scan_args, "created": time.time()}, [])
+        session = cls(path, {"name": path.name, "status": status, "scan": scan_args, "created": time.time()}, [])
         session.save_meta()
         return session
 

@@ -12,12 +12,12 @@ import time
 import zmq
 
 from palpd.bus.commands import CommandServer
-from palpd.bus.messages import EVENT_MODELS, json_schemas
+from palpd.bus.messages import recording_schemas
 from palpd.bus.publisher import EventPublisher
 from palpd.bus.security import Security
 from palpd.daemon import handlers
 from palpd.daemon.learning import make_estimator
-from palpd.daemon.mcap import McapWriter
+from palpd.daemon.mcap import McapWriter, seal
 from palpd.daemon.notify import Notifier
 from palpd.daemon.session import ensure_writable, find_unfinished, state_directory
 from palpd.daemon.worker import WORKER_ENDPOINT, ScanWorker
@@ -36,9 +36,9 @@ class Supervisor:
         self.context = zmq.Context()
         self.state, self.message = "configure", ""
         self.session, self.job, self.recording = None, None, None
+        self.probe_session = None  # single palpations (probe.at) of this run, journaled like a scan's
         self.estimator = make_estimator(settings)
         self.last_estimate = None
-        self.probes_done = 0
         self._terminating = False
         self._last_watchdog = 0.0
 
@@ -66,6 +66,8 @@ class Supervisor:
         if session is None:
             return
         self.session = session
+        for recording in session.path.glob("recording-*.mcap"):
+            seal(recording)  # the crashed run's file, ended properly so Foxglove opens it
         for entry in session.entries:
             self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0)
         self.publish("estimate", self.bench.clock.now(), **self.estimator.estimate())
@@ -155,8 +157,6 @@ class Supervisor:
         event = self.events.publish(topic, t, **fields)
         if topic == "estimate":
             self.last_estimate = event
-        elif topic == "palpation":
-            self.probes_done += 1
         if self.recording is not None:
             self.recording.write(topic, event.model_dump(mode="json"))
 
@@ -178,9 +178,8 @@ class Supervisor:
         fields = self.status_fields()
         return f"{fields['state']}: {fields['palpations']} palpations" + (f", {self.message}" if self.message else "")
 
-    def open_recording(self) -> None:
-        self.recording = McapWriter(self.session.next_recording(),
-                                    {topic: schema for topic, schema in json_schemas().items() if topic in EVENT_MODELS})
+    def open_recording(self, session) -> None:
+        self.recording = McapWriter(session.next_recording(), recording_schemas())
 
     def close_recording(self) -> None:
         if self.recording is not None:
