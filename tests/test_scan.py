@@ -8,6 +8,7 @@ from conftest import SCENES, assert_one_line_error
 from drivers.sim.scene import Scene, load_scene
 from palpd.bench import open_simulated_bench
 from palpd.config import Settings
+from palpd.control.remote import open_servo_bench
 from palpd.control.tasks import MoveTo
 from palpd.errors import ScanFault
 from palpd.scan import palpate, plan, run_scan
@@ -20,8 +21,11 @@ def uniform_scene(k=0.12, tilt=False, **sensor):
 def test_raster_scan_of_the_paper_scene_finds_the_lump_within_2_5_mm():
     scene = load_scene(SCENES / "paper.toml")
     settings = Settings()
-    bench = open_simulated_bench(settings, scene)
-    report = run_scan(bench, settings, plan("raster", scene.tissue.size_mm, 81, 0))
+    bench = open_servo_bench(settings, scene)  # the servo loop in its own process, as `palpd scan` runs it
+    try:
+        report = run_scan(bench, settings, plan("raster", scene.tissue.size_mm, 81, 0))
+    finally:
+        bench.servo.close()
     assert report["faults"] == [] and report["palpations"] == 81
     (lump,) = report["lumps"]
     truth = scene.lump[0]

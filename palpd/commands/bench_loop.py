@@ -66,24 +66,28 @@ def bare_loop(rate_hz: float, seconds: float) -> dict:
 
 
 def servo_loop(settings, seconds: float) -> tuple[dict, list[dict]]:
-    """Palpate one point over and over on the simulated bench, on the wall clock."""
+    """Palpate one point over and over on the simulated bench, on the wall clock, in the servo process."""
     from drivers.sim.scene import Scene
-    from palpd.bench import open_simulated_bench
+    from palpd.control.remote import open_servo_bench
     from palpd.errors import ScanFault
 
-    bench = open_simulated_bench(settings, Scene(name="bench"), realtime=True)
+    bench = open_servo_bench(settings, Scene(name="bench"), realtime=True)
     servo, faults = bench.servo, []
-    end = bench.clock.now() + seconds
-    servo.start()
-    while bench.clock.now() < end:
-        try:
-            servo.run(_PalpateUntil(end, settings.palpation))
-        except ScanFault:
-            faults.append({k: v for k, v in servo.fault.as_dict().items() if k != "last_samples"})
-            servo.reset()
-            servo.start()
-    servo.stop()
-    return servo.timing.summary(), faults
+    try:
+        servo.start()
+        servo.timing.reset()  # from here on: the process's start-up is not the loop's timing
+        end = bench.clock.now() + seconds
+        while bench.clock.now() < end:
+            try:
+                servo.run(_PalpateUntil(end, settings.palpation))
+            except ScanFault:
+                faults.append({k: v for k, v in servo.fault.as_dict().items() if k != "last_samples"})
+                servo.reset()
+                servo.start()
+        servo.stop()
+        return servo.timing.summary(), faults
+    finally:
+        servo.close()
 
 
 class _PalpateUntil:

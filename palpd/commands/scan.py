@@ -31,7 +31,7 @@ def run(args) -> int:
     # Heavy imports here, not at the top: `palpd --help` and argument errors stay fast.
     from drivers.sim.scene import load_scene, truth_lumps
     from palpd import metrics
-    from palpd.bench import open_bench
+    from palpd.control.remote import open_servo_bench
     from palpd.scan import plan, run_scan
 
     if args.max_palpations is not None and args.max_palpations < 1:
@@ -48,10 +48,14 @@ def run(args) -> int:
     # The active budget has its own default (learner.max_palpations): it stops on its own well before a raster's.
     budget = args.max_palpations or (settings.learner.max_palpations if s.strategy == "active" else s.max_palpations)
     planner = plan(s.strategy, scene.tissue.size_mm, budget, s.seed, settings)
-    bench = open_bench(settings, scene, seed=s.seed, realtime=args.realtime)
+    # The servo loop runs in its own process, as under `palpd serve`; one process for the whole scan.
+    bench = open_servo_bench(settings, scene, seed=s.seed, realtime=args.realtime)
     _say(args, f"scan of scene {scene.name!r}: {s.strategy}, up to {planner.expected_total} palpations, "
                f"depth {settings.palpation.depth_mm} mm at {settings.palpation.speed_mm_s} mm/s")
-    report = {"scene": scene.name, **run_scan(bench, settings, planner, _progress_printer(args))}
+    try:
+        report = {"scene": scene.name, **run_scan(bench, settings, planner, _progress_printer(args))}
+    finally:
+        bench.servo.close()
     truth = truth_lumps(scene)
     report["truth"] = {"lumps": truth}
     report["metrics"] = metrics.compare(truth, report["lumps"])

@@ -14,7 +14,7 @@ def add_parser(subparsers):
 def run(args) -> int:
     from drivers.errors import DriverError
     from drivers.sim.scene import load_scene
-    from palpd.bench import open_simulated_bench
+    from palpd.control.remote import open_servo_bench
     from palpd.config import load_settings
     from palpd.daemon.supervisor import Supervisor
 
@@ -28,7 +28,10 @@ def run(args) -> int:
         scene = load_scene(scene_path)
     except DriverError as exc:
         raise ConfigError(str(exc)) from None
-    bench = open_simulated_bench(settings, scene, seed=settings.scan.seed, realtime=settings.daemon.realtime)
-    supervisor = Supervisor(settings, bench)
-    supervisor.open()
-    return supervisor.serve()
+    bench = open_servo_bench(settings, scene, seed=settings.scan.seed, realtime=settings.daemon.realtime)
+    try:
+        supervisor = Supervisor(settings, bench)
+        supervisor.open()
+        return supervisor.serve()
+    finally:
+        bench.servo.close()  # idempotent: a clean shut-down has closed it already

@@ -61,6 +61,10 @@ class SafetySupervisor:
         """The first reason to stop at this tick, or None."""
         return self._device(tick) or self._timing(tick) or self._sample(tick) or self._motion(tick)
 
+    def check_device(self, tick) -> Fault | None:
+        """Only the robot's own status bits: what still matters while the motors are off."""
+        return self._device(tick)
+
     def _device(self, tick) -> Fault | None:
         for bit, code, message in _STATUS_FAULTS:
             if tick.status & bit:

@@ -27,7 +27,8 @@ from palpd.errors import ScanFault
 Vec3 = tuple[float, float, float]
 FAULT_HISTORY_TICKS = 20  # samples kept with a fault record
 RETRACT_ACCEL_MM_S2 = 5000.0
-FORCE_LIMITED_TICKS = 10  # commanding the capped force this long means pushing against something rigid
+FORCE_LIMITED_TICKS = 10
+NO_CURRENT = (0.0, 0.0, 0.0)  # commanding the capped force this long means pushing against something rigid
 
 
 @dataclass(slots=True)
@@ -67,7 +68,11 @@ class ServoLoop:
         self.history: deque = deque(maxlen=FAULT_HISTORY_TICKS)
         self.tick_hook = None  # called with each Tick after the command is written (recorders, tests)
         self._estop_requested = False
+        self.estop_input = None  # an outside e-stop (anything with is_set()), read every tick
         self._limited_ticks = 0
+        self.motors_on = False
+        self._deadline = clock.now()
+        self._hold_mm: Vec3 | None = None  # where idle ticks hold the tip: the last setpoint
 
     @property
     def ticks(self) -> int:
@@ -79,11 +84,15 @@ class ServoLoop:
 
     def start(self) -> None:
         self.robot.enable()
+        self.motors_on = True
+        self._hold_mm = None
         self._deadline = self.clock.now()
         self._previous_t = None
+        self.supervisor.reset()  # the arm may have been moved by hand while the motors were off
 
     def stop(self) -> None:
         self.robot.disable()
+        self.motors_on = False
 
     def request_estop(self) -> None:
         """The software e-stop input: the next tick cuts the current and latches a fault."""
@@ -101,8 +110,41 @@ class ServoLoop:
             fault = self._check(tick, give_up)
             if fault is not None:
                 self._controlled_stop(fault, tick)
-            self.robot.write(self.controller.currents(tick.q, tick.tip_mm, tick.velocity_mm_s, task.step(tick)))
+            self._hold_mm = task.step(tick)
+            self.robot.write(self.controller.currents(tick.q, tick.tip_mm, tick.velocity_mm_s, self._hold_mm))
             self._end_tick(tick, started)
+
+    def idle_tick(self) -> None:
+        """A tick between tasks (the servo process on the wall clock): hold the last setpoint while the
+        motors are on, otherwise write zero current; either way the bridge watchdog stays fed and the
+        supervisor keeps watching. Raises ScanFault (motors off) like run()."""
+        started = time.perf_counter()
+        tick = self._sense()
+        if self.motors_on and self.fault is None:
+            fault = self._check(tick, math.inf)
+            if fault is not None:
+                self._controlled_stop(fault, tick)
+            if self._hold_mm is None:
+                self._hold_mm = tick.tip_mm
+            self.robot.write(self.controller.currents(tick.q, tick.tip_mm, tick.velocity_mm_s, self._hold_mm))
+        else:
+            fault = self._idle_fault(tick)
+            self.robot.write(NO_CURRENT)
+            if fault is not None:
+                self._end_tick(tick, started)
+                self._controlled_stop(fault, tick)
+        self._end_tick(tick, started)
+
+    def _idle_fault(self, tick: Tick) -> Fault | None:
+        """With the motors off only the e-stop and the robot's own status can demand a latched fault."""
+        if self.fault is not None:
+            return None
+        if self._estop_wanted():
+            return Fault("estop", "e-stop requested", tick.t_s)
+        return self.supervisor.check_device(tick)
+
+    def _estop_wanted(self) -> bool:
+        return self._estop_requested or (self.estop_input is not None and self.estop_input.is_set())
 
     def _resume(self) -> None:
         """Between tasks this in-process loop does not tick; on the wall clock that pause is neither a
@@ -115,7 +157,7 @@ class ServoLoop:
             self.supervisor.reset()
 
     def _check(self, tick: Tick, give_up: float) -> Fault | None:
-        if self._estop_requested:
+        if self._estop_wanted():
             return Fault("estop", "e-stop requested", tick.t_s)
         fault = self.supervisor.check(tick)
         self._limited_ticks = self._limited_ticks + 1 if self.controller.limited else 0
@@ -181,9 +223,10 @@ class ServoLoop:
     def _controlled_stop(self, fault: Fault, tick: Tick) -> None:
         fault = Fault(fault.code, fault.message, fault.t_s, tuple(self.history))
         self.fault = fault
-        if fault.code in RETRACTABLE:
+        if fault.code in RETRACTABLE and self.motors_on:
             self._retract(tick)
         self.robot.disable()
+        self.motors_on = False
         raise ScanFault(f"{fault.code}: {fault.message} at t = {fault.t_s:.3f} s; motors off")
 
     def _retract(self, tick: Tick) -> None:

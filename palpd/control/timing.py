@@ -17,6 +17,11 @@ class TimingStats:
         self._compute_s = array("d", bytes(8 * window))
         self._window = window
 
+    def reset(self) -> None:
+        """Start the statistics afresh (a benchmark's warm-up is not its result)."""
+        self.ticks = 0
+        self.overruns = 0
+
     def record(self, lateness_s: float, compute_s: float) -> None:
         i = self.ticks % self._window
         self._lateness_s[i] = lateness_s

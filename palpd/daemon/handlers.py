@@ -86,7 +86,7 @@ def scan_stop(sup, command) -> None:
 
 
 def estop(sup, command) -> None:
-    sup.worker.estop.set()  # trips the servo loop on its next tick; any later motion trips at once
+    sup.bench.servo.request_estop()  # the servo process trips on its next tick; any later motion trips at once
     if sup.job is None:
         sup.set_state("fault", "estop")
         sup.publish("fault", sup.bench.clock.now(), code="estop", message="emergency stop requested")
@@ -94,8 +94,7 @@ def estop(sup, command) -> None:
 
 
 def reset(sup, command) -> None:
-    sup.worker.estop.clear()
-    sup.bench.servo.reset()  # the worker is idle in fault: nothing else touches the servo now
+    sup.bench.servo.reset()  # clears the e-stop input and the latched fault in the servo process
     sup.set_state("ready", "fault cleared")
     sup.commands.reply(command, state=sup.state)
 

@@ -1,8 +1,9 @@
 """The daemon supervisor: bus, commands, recorder, lifecycle and sd_notify, on one thread that never blocks.
 
 Lifecycle: configure -> ready -> scanning -> (ready | fault) ... -> stopped.
-The robot work runs in the ScanWorker; this loop only polls sockets, so status
-and estimate.get answer at once even mid-palpation.
+The servo loop runs in its own process; the ScanWorker thread feeds it tasks;
+this loop only polls sockets, so status and estimate.get answer at once even
+mid-palpation.
 """
 from __future__ import annotations
 
@@ -117,9 +118,9 @@ class Supervisor:
                 handlers.job_ended(self, message["fault"])
 
     def _ping_watchdog(self) -> None:
-        """WATCHDOG=1 only while the worker (servo loop or its idle loop) shows it is alive."""
+        """WATCHDOG=1 only while the servo process's heartbeat (in shared memory) shows its loop is alive."""
         interval = self.notifier.watchdog_interval_s
-        if interval is None or self.worker.heartbeat.age_s() > interval:
+        if interval is None or self.bench.servo.health_age_s() > interval:
             return
         now = time.monotonic()
         if now - self._last_watchdog >= interval / 2:
@@ -137,10 +138,11 @@ class Supervisor:
             self.worker.stop_requested.set()
             self._wait_for_job(poller, self.settings.daemon.stop_timeout_s)
         if self.job is not None:
-            self.worker.estop.set()  # the palpation did not finish in time: trip, motors off
+            self.bench.servo.request_estop()  # the palpation did not finish in time: trip, motors off
             self._wait_for_job(poller, QUIT_GRACE_S)
         self.worker.quit()
         self.worker.join(QUIT_GRACE_S)
+        self.bench.servo.close()  # the servo process quits with its motors off
         self._drain_worker()
         self.set_state("stopped", "terminated")
         self.close_recording()

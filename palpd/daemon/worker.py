@@ -1,56 +1,26 @@
-"""The scan worker: owns the bench and runs scans, probes and tares off the bus thread.
+"""The scan worker: runs scans, probes and tares off the bus thread, as tasks for the servo process.
 
-It talks to the supervisor only through an inproc PUSH socket (events and job
-ends) and two flags (stop, estop), so the bus never waits on the robot. Its
-liveness — the servo loop ticking, or the idle loop turning — is the heartbeat
-the supervisor turns into systemd WATCHDOG=1.
-
-Today the servo loop runs in this thread; when the servo process lands, this
-class is where its pipe goes: the jobs become requests to that process and the
-heartbeat its health messages.
+The servo loop itself runs in its own process (palpd/control/process.py); this
+thread only sends it one task at a time and fits what comes back, so neither
+the bus nor this thread ever shares a GIL with the loop. It talks to the
+supervisor only through an inproc PUSH socket (events and job ends) and a stop
+flag, so the bus never waits on the robot. The e-stop and the heartbeat the
+supervisor turns into systemd WATCHDOG=1 go straight to the servo process's
+shared memory.
 """
 from __future__ import annotations
 
 import queue
 import threading
-import time
 
 import zmq
 
-from palpd.control.safety import Fault
 from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.errors import ScanFault
 from palpd.scan import run_scan
 
 WORKER_ENDPOINT = "inproc://palpd-worker"
-IDLE_BEAT_S = 0.1
-
-
-class Heartbeat:
-    def __init__(self) -> None:
-        self.at = time.monotonic()
-
-    def beat(self) -> None:
-        self.at = time.monotonic()
-
-    def age_s(self) -> float:
-        return time.monotonic() - self.at
-
-
-class GuardedSupervisor:
-    """Wraps the safety supervisor: every tick beats the heart and honours an emergency stop."""
-
-    def __init__(self, inner, heartbeat: Heartbeat, estop: threading.Event) -> None:
-        self.inner, self.heartbeat, self.estop = inner, heartbeat, estop
-
-    def check(self, tick):
-        self.heartbeat.at = time.monotonic()
-        if self.estop.is_set():
-            return Fault("estop", "emergency stop requested", tick.t_s)
-        return self.inner.check(tick)
-
-    def reset(self) -> None:
-        self.inner.reset()
+IDLE_WAIT_S = 0.1
 
 
 class StoppablePlan:
@@ -71,11 +41,9 @@ class ScanWorker(threading.Thread):
     def __init__(self, context: zmq.Context, bench, settings) -> None:
         super().__init__(name="palpd-scan", daemon=True)
         self.context, self.bench, self.settings = context, bench, settings
-        self.heartbeat = Heartbeat()
-        self.stop_requested, self.estop = threading.Event(), threading.Event()
+        self.stop_requested = threading.Event()
         self._jobs: queue.Queue = queue.Queue()
         self._quit = False
-        bench.servo.supervisor = GuardedSupervisor(bench.servo.supervisor, self.heartbeat, self.estop)
 
     def submit(self, job) -> None:
         """job(worker) runs in this thread; a job returning normally ends with a job_end message."""
@@ -91,15 +59,14 @@ class ScanWorker(threading.Thread):
         self.out.connect(WORKER_ENDPOINT)
         try:
             while not self._quit:
-                self.heartbeat.beat()
                 try:
-                    job = self._jobs.get(timeout=IDLE_BEAT_S)
+                    job = self._jobs.get(timeout=IDLE_WAIT_S)
                 except queue.Empty:
                     continue
                 if job is not None:
                     self._run_job(job)
         finally:
-            self.bench.servo.stop()  # amplifiers off whatever happened
+            self.bench.servo.stop()  # amplifiers off whatever happened (a lost servo process is off already)
             self.out.close(linger=1000)
 
     def _run_job(self, job) -> None:

@@ -1,0 +1,213 @@
+"""The parent's side of the servo process: a bench whose servo loop runs in its own process.
+
+`RemoteServo` has the interface run_scan and palpate use on an in-process
+ServoLoop (start, run, stop, forces.tare, fault, last_tick, max_contact_force_n,
+reset, request_estop, timing), so the scan code runs unchanged over it. A dead
+or hung child is never waited for: it becomes a latched fault within
+UNRESPONSIVE_S.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import threading
+import time
+
+from palpd.bench import Bench
+from palpd.control.process import servo_main
+from palpd.control.ring import SampleRing
+from palpd.control.safety import Fault
+from palpd.errors import PalpdError, ScanFault
+
+START_TIMEOUT_S = 60.0  # spawning a Python and importing numpy on a loaded 2-core machine
+UNRESPONSIVE_S = 5.0  # no heartbeat for this long: the loop is hung
+QUIT_TIMEOUT_S = 5.0
+POLL_S = 0.1
+
+
+class ServoProcessError(PalpdError):
+    """The servo process could not be started or stopped answering."""
+
+
+def open_servo_bench(settings, scene, seed: int = 0, realtime: bool = False) -> Bench:
+    """Start the servo process on the bench open_bench would open here; returns the parent's view of it."""
+    context = multiprocessing.get_context("spawn")  # never fork a process that holds ZeroMQ threads
+    ring = SampleRing.create()
+    ours, theirs = context.Pipe()
+    process = context.Process(target=servo_main, args=(theirs, ring.name, settings, scene, seed, realtime),
+                              name="palpd-servo", daemon=True)
+    process.start()
+    theirs.close()
+    servo = RemoteServo(process, ours, ring)
+    try:
+        info = servo.call("hello", wait_s=START_TIMEOUT_S)
+    except ScanFault as exc:
+        servo.close()
+        raise ServoProcessError(f"the servo process did not start: {servo.fault.message}") from exc
+    except BaseException:
+        servo.close()
+        raise
+    servo.period_s = info["period_s"]
+    return Bench(servo, RemoteClock(servo), info["frame"], info["tissue_size_mm"])
+
+
+class RemoteClock:
+    """The servo loop's clock, as its last tick wrote it (robot time: virtual in simulation)."""
+
+    def __init__(self, servo: "RemoteServo") -> None:
+        self.servo = servo
+
+    def now(self) -> float:
+        return self.servo.header()["now_s"]
+
+
+class RemoteForces:
+    def __init__(self, servo: "RemoteServo") -> None:
+        self.servo = servo
+        self.bias_n = (0.0, 0.0, 0.0)
+
+    def tare(self, samples) -> None:
+        """The child's ForceReader takes the mean of these samples as the sensor's zero."""
+        self.servo.call("tare", list(samples))
+
+
+class RemoteTiming:
+    def __init__(self, servo: "RemoteServo") -> None:
+        self.servo = servo
+
+    @property
+    def ticks(self) -> int:
+        return self.servo.header()["ticks"]
+
+    @property
+    def overruns(self) -> int:
+        return self.servo.header()["overruns"]
+
+    def reset(self) -> None:
+        self.servo.call("timing_reset")
+
+    def summary(self) -> dict:
+        """The Bench JSON loop figures, computed in the servo process."""
+        return self.servo.call("timing")
+
+
+class RemoteServo:
+    def __init__(self, process, conn, ring: SampleRing) -> None:
+        self.process, self.conn, self.ring = process, conn, ring
+        self.forces, self.timing = RemoteForces(self), RemoteTiming(self)
+        self.fault: Fault | None = None
+        self.last_tick = None
+        self.max_contact_force_n = 0.0
+        self.motors_on = False
+        self.amplifiers_on = None
+        self.period_s = 0.001
+        self._lock = threading.Lock()  # one request at a time (the daemon's worker and its command handlers)
+        self._beat, self._beat_seen_at = -1, time.monotonic()
+        self._closed = False
+
+    @property
+    def pid(self) -> int:
+        return self.process.pid
+
+    def start(self) -> None:
+        self.call("start")
+
+    def stop(self) -> None:
+        """Motors off; a dead child's motors are already without current (the bridge watchdog)."""
+        if self.process.is_alive() and not self._closed:
+            try:
+                self.call("stop")
+            except ScanFault:
+                pass
+
+    def reset(self) -> None:
+        self.ring.set_estop(False)
+        self.call("reset")
+
+    def request_estop(self) -> None:
+        """The software e-stop: a flag in shared memory the loop reads before it writes its next command."""
+        self.ring.set_estop(True)
+
+    def run(self, task, timeout_s: float = 120.0) -> None:
+        """Run the task in the servo process; the finished task's state is copied back into `task`."""
+        done = self.call("run", task, timeout_s)
+        task.__dict__.update(done["task"].__dict__)
+        if done["fault"] is not None:
+            raise ScanFault(done["fault"])
+
+    def header(self) -> dict:
+        """The loop's shared-memory header; after close(), as it was last."""
+        if self.ring is not None:
+            self._last_header = self.ring.header()
+        return self._last_header
+
+    def health_age_s(self) -> float:
+        """Seconds since the loop last showed it is alive (ticking, or waiting for work)."""
+        beat = self.header()["heartbeat"]
+        if beat != self._beat:
+            self._beat, self._beat_seen_at = beat, time.monotonic()
+        return time.monotonic() - self._beat_seen_at
+
+    def call(self, command: str, *args, wait_s: float | None = None):
+        with self._lock:
+            if command != "hello":
+                self._send((command, *args))
+            kind, payload, state = self._receive(wait_s)
+        if state is not None:
+            self._take(state)
+        if kind == "error":
+            raise payload
+        return payload
+
+    def _send(self, message) -> None:
+        if self._closed or not self.process.is_alive():
+            self._lost("servo process is not running")
+        try:
+            self.conn.send(message)
+        except (BrokenPipeError, ConnectionResetError, EOFError):
+            self._lost("servo process closed its pipe")
+
+    def _receive(self, wait_s: float | None):
+        give_up = None if wait_s is None else time.monotonic() + wait_s
+        self.health_age_s()
+        while not self.conn.poll(POLL_S):
+            if not self.process.is_alive():
+                self._lost(f"servo process exited (code {self.process.exitcode})")
+            if give_up is not None and time.monotonic() > give_up:
+                self._lost(f"servo process did not answer within {wait_s:.0f} s")
+            if give_up is None and self.health_age_s() > UNRESPONSIVE_S:
+                self._lost(f"servo loop showed no heartbeat for {UNRESPONSIVE_S:.0f} s")
+        try:
+            return self.conn.recv()
+        except (EOFError, ConnectionResetError):
+            self._lost(f"servo process exited (code {self.process.exitcode})")
+
+    def _take(self, state: dict) -> None:
+        self.fault, self.last_tick = state["fault"], state["last_tick"]
+        self.max_contact_force_n, self.motors_on = state["max_contact_force_n"], state["motors_on"]
+        self.forces.bias_n, self.amplifiers_on = state["bias_n"], state["amplifiers_on"]
+
+    def _lost(self, why: str):
+        """The child is gone or hung: kill it (the bridge watchdog cuts the current), latch, raise."""
+        self.process.kill()
+        self._closed = True
+        t_s = self.last_tick.t_s if self.last_tick is not None else 0.0
+        self.fault = Fault("servo_lost", why, t_s)
+        raise ScanFault(f"servo_lost: {why}; motors off")
+
+    def close(self) -> None:
+        """Quit the child (motors off on its way out), or kill it if it does not go within QUIT_TIMEOUT_S."""
+        if not self._closed and self.process.is_alive():
+            try:
+                self.call("quit", wait_s=QUIT_TIMEOUT_S)
+            except (ScanFault, PalpdError):
+                pass
+        self._closed = True
+        self.process.join(QUIT_TIMEOUT_S)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join(QUIT_TIMEOUT_S)
+        self.conn.close()
+        if self.ring is not None:
+            self.header()
+            self.ring.close()
+            self.ring = None

@@ -1,0 +1,134 @@
+"""The servo loop in its own process: samples through shared memory, tasks and faults over the pipe."""
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from drivers.sim.scene import Scene
+from palpd.config import Settings
+from palpd.control import remote
+from palpd.control.remote import open_servo_bench
+from palpd.control.ring import FLAG_MOTORS_ON, FLAG_TASK
+from palpd.control.tasks import HoldAndCollect, MoveTo
+from palpd.errors import ConfigError, ScanFault
+
+PERIOD_S = 0.001
+
+
+@pytest.fixture(scope="module")
+def bench():
+    """One servo process for the tests that leave it usable (start-up costs a Python and numpy)."""
+    bench = open_servo_bench(Settings(), Scene(name="p", tissue={"stiffness_n_per_mm": 0.6}))
+    yield bench
+    bench.servo.close()
+
+
+def test_the_loop_runs_in_another_process_and_every_tick_reaches_the_ring_in_order(bench):
+    servo = bench.servo
+    assert servo.pid != os.getpid() and servo.process.is_alive()
+    since = servo.header()["written"]
+    servo.start()
+    servo.run(MoveTo((0.0, 0.0, 4.0), 80.0, 2000.0))
+    hold = HoldAndCollect(300)
+    servo.run(hold)
+    assert len(hold.samples) == 300  # the finished task came back through the pipe
+    samples, next_index, lost = servo.ring.read_new(since)
+    assert lost == 0 and next_index == servo.header()["written"] == since + len(samples)
+    assert len(samples) > 300
+    np.testing.assert_allclose(np.diff(samples["t_s"]), PERIOD_S, atol=1e-9)  # virtual time: no gaps, 1 kHz
+    assert (samples["flags"] & FLAG_MOTORS_ON).all() and (samples["flags"] & FLAG_TASK).all()
+    np.testing.assert_allclose(samples["tip_mm"][-1], (0.0, 0.0, 4.0), atol=0.5)
+    assert servo.last_tick.t_s == pytest.approx(samples["t_s"][-1])
+    assert bench.clock.now() == pytest.approx(samples["t_s"][-1])
+    servo.stop()
+
+
+def test_a_fault_in_the_loop_reaches_the_parent_latched_with_the_motors_off(bench):
+    servo = bench.servo
+    servo.start()
+    servo.run(MoveTo((0.0, 0.0, 2.0), 80.0, 2000.0))
+    with pytest.raises(ScanFault, match="force_cap"):
+        servo.run(MoveTo((0.0, 0.0, -15.0), 20.0, 2000.0))  # 0.6 N/mm tissue: the cap comes first
+    assert servo.fault.code == "force_cap" and servo.fault.last_samples
+    assert not servo.motors_on and servo.amplifiers_on is False  # the simulated amplifiers, not a flag of ours
+    assert servo.max_contact_force_n <= Settings().safety.force_cap_n + 1.0
+    with pytest.raises(ScanFault, match="reset first"):
+        servo.run(MoveTo((0.0, 0.0, 5.0), 20.0, 2000.0))
+    servo.reset()
+    assert servo.fault is None
+    servo.start()
+    servo.run(MoveTo((0.0, 0.0, 6.0), 40.0, 2000.0))
+    servo.stop()
+
+
+def test_an_estop_from_the_parent_trips_the_loop_within_one_tick(bench):
+    servo = bench.servo
+    servo.start()
+    failure = []
+    mover = threading.Thread(target=lambda: _run_catching(servo, MoveTo((20.0, 20.0, 30.0), 2.0, 100.0), failure))
+    before = servo.header()["written"]
+    mover.start()
+    while servo.header()["written"] < before + 200:  # well under way (a 2 mm/s move takes seconds)
+        time.sleep(0.001)
+    servo.request_estop()
+    latest, _, _ = servo.ring.read_new(servo.header()["written"] - 1)
+    mover.join(30)
+    assert failure and "estop" in failure[0]
+    # The tick in progress when the flag was set had checked already; the next one trips.
+    assert servo.fault.code == "estop" and servo.fault.t_s <= latest["t_s"][0] + 2 * PERIOD_S + 1e-9
+    assert not servo.motors_on and servo.amplifiers_on is False
+    with pytest.raises(ScanFault):  # latched until reset: no motion until then
+        servo.run(MoveTo((0.0, 0.0, 6.0), 40.0, 2000.0))
+    servo.reset()
+    servo.start()
+    servo.run(MoveTo((0.0, 0.0, 6.0), 40.0, 2000.0))
+    servo.stop()
+
+
+def _run_catching(servo, task, failure: list) -> None:
+    try:
+        servo.run(task)
+    except ScanFault as exc:
+        failure.append(str(exc))
+
+
+def test_quit_ends_the_child_cleanly_and_a_killed_child_is_a_clear_fault_not_a_hang():
+    bench = open_servo_bench(Settings(), Scene(name="q"))
+    servo = bench.servo
+    servo.start()
+    servo.run(MoveTo((0.0, 0.0, 6.0), 80.0, 2000.0))
+    os.kill(servo.pid, signal.SIGKILL)
+    started = time.monotonic()
+    with pytest.raises(ScanFault, match="servo_lost: servo process"):
+        servo.run(MoveTo((0.0, 0.0, 8.0), 80.0, 2000.0))
+    assert time.monotonic() - started < 2.0 and servo.fault.code == "servo_lost"
+    servo.stop()  # a dead child's motors are off already: no error on the way out
+    servo.close()
+
+    clean = open_servo_bench(Settings(), Scene(name="q"))
+    clean.servo.close()
+    assert clean.servo.process.exitcode == 0
+
+
+def test_a_hung_child_is_noticed_by_its_missing_heartbeat(monkeypatch):
+    monkeypatch.setattr(remote, "UNRESPONSIVE_S", 0.5)
+    bench = open_servo_bench(Settings(), Scene(name="h"))
+    servo = bench.servo
+    try:
+        servo.start()
+        os.kill(servo.pid, signal.SIGSTOP)
+        started = time.monotonic()
+        with pytest.raises(ScanFault, match="no heartbeat"):
+            servo.run(MoveTo((0.0, 0.0, 8.0), 80.0, 2000.0))
+        assert time.monotonic() - started < 3.0
+    finally:
+        servo.close()
+    assert not servo.process.is_alive()
+
+
+def test_an_unsafe_configuration_is_refused_by_the_child_with_the_same_error():
+    with pytest.raises(ConfigError, match="force_cap_n"):
+        open_servo_bench(Settings().updated(safety={"force_cap_n": 100.0}), Scene(name="c"))
