@@ -14,7 +14,7 @@ $(BIN)/palpd: pyproject.toml
 
 run: $(BIN)/palpd
 	mkdir -p $(OUT)
-	$(BIN)/palpd scan --scene config/scenes/paper.toml --strategy raster \
+	$(BIN)/palpd scan --scene config/scenes/paper.toml --strategy active \
 		--report $(OUT)/paper-report.json --plot $(OUT)/paper-map.png
 
 test: $(BIN)/palpd
