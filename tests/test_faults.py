@@ -125,3 +125,19 @@ def test_bench_loop_refuses_a_bad_length(run_cli):
     from conftest import assert_one_line_error
 
     assert_one_line_error(run_cli("bench", "loop", "--seconds", "-1"), "--seconds")
+
+
+def test_bench_hotpath_prints_plain_float_and_numpy_figures_for_the_same_math(run_cli):
+    import json
+
+    result = run_cli("bench", "hotpath", "--ticks", "300", "--json")
+    assert result.returncode == 0, result.stderr
+    figures = json.loads(result.stdout)
+    assert figures["ticks"] == 300 and figures["plain_floats_us_per_tick"] > 0 and figures["numpy_us_per_tick"] > 0
+    assert figures["max_current_difference_a"] < 1e-9  # the two versions compute the same currents
+
+
+def test_bench_hotpath_refuses_a_bad_tick_count(run_cli):
+    from conftest import assert_one_line_error
+
+    assert_one_line_error(run_cli("bench", "hotpath", "--ticks", "5"), "--ticks")

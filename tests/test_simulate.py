@@ -35,12 +35,16 @@ def serve_simulator(cwd, *options):
 
 
 def test_scan_runs_against_a_separately_started_simulator(simulator, tmp_path, run_cli):
-    # Real time on a shared CI machine without real-time scheduling: generous timeouts and a tolerance for
-    # stalls of the test host. What is under test here is the wire path, not the timing (bench loop measures that).
+    # Real time on a shared CI machine without real-time scheduling: generous transport timeouts, and two
+    # safety settings for a loaded host: it deschedules the servo for tens of ms (on a bench a loop stall),
+    # and meanwhile the separately running simulator moves the arm open-loop on the last current, a real
+    # overshoot (500+ mm/s seen at load 5 on 2 cores). The encoder check keeps its default: it measures over
+    # the real time between samples.
+    # What is under test here is the wire path, not the timing (bench loop measures that).
     (tmp_path / "remote.toml").write_text(
         f'[robot]\nurl = "{simulator["bridge"]}"\ntimeout_s = 0.2\n'
         f'[sensor]\nbackend = "{simulator["netft"]}"\ntimeout_s = 0.5\nstale_after_s = 0.1\n'
-        '[safety]\nmax_tick_gap_s = 0.5\nmax_tip_speed_mm_s = 1500.0\nmax_joint_speed_rad_s = 200.0\n')  # descheduled processes overshoot
+        '[safety]\nmax_tick_gap_s = 0.5\nmax_tip_speed_mm_s = 1500.0\n')
     assert simulator["bridge"].startswith("socket://127.0.0.1:")
     result = run_cli("scan", "--scene", SCENES / "paper.toml", "--config", "remote.toml",
                      "--max-palpations", "1", "--report", "r.json")

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import importlib
 
-BENCHMARKS: list[str] = ["loop", "learner", "tradeoff", "drivers"]
+BENCHMARKS: list[str] = ["loop", "learner", "tradeoff", "drivers", "hotpath"]
 
 
 def add_parser(subparsers):

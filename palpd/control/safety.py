@@ -48,7 +48,8 @@ class SafetySupervisor:
         self.max_speed = settings.max_tip_speed_mm_s
         self.max_sample_age_s = settings.max_sample_age_s
         self.max_tick_gap_s = settings.max_tick_gap_s
-        self.max_joint_step_rad = settings.max_joint_speed_rad_s * period_s + max(model.RAD_PER_COUNT)
+        self.max_joint_speed_rad_s = settings.max_joint_speed_rad_s
+        self.period_s = period_s
         margin = settings.joint_limit_margin_rad
         self.joint_ranges = tuple((low + margin, high - margin) for low, high in model.JOINT_LIMITS_RAD)
         self.box_mm = workspace_box_mm(settings, tissue_size_mm, home_mm)
@@ -76,11 +77,19 @@ class SafetySupervisor:
             return Fault("loop_stall", f"servo loop stalled for {1000 * tick.gap_s:.1f} ms", tick.t_s)
         previous, self._previous_q = self._previous_q, tick.q
         if previous is not None:
+            allowed_rad = self.max_joint_speed_rad_s * self._elapsed_s(tick)
             for j in range(3):
-                if abs(tick.q[j] - previous[j]) > self.max_joint_step_rad:
-                    return Fault("encoder_jump", f"joint {j + 1} encoder jumped "
-                                 f"{tick.q[j] - previous[j]:+.4f} rad in one tick", tick.t_s)
+                step = tick.q[j] - previous[j]
+                if abs(step) > allowed_rad + model.RAD_PER_COUNT[j]:
+                    return Fault("encoder_jump", f"joint {j + 1} encoder jumped {step:+.4f} rad in "
+                                 f"{1000 * tick.sample_gap_s:.1f} ms", tick.t_s)
         return None
+
+    def _elapsed_s(self, tick) -> float:
+        """The time the joints had to move since the previous sample: a late tick allows more motion, but
+        never less than one period (timestamps jitter) nor more than max_tick_gap_s (beyond that the host
+        gap is a loop stall, and the device's clock is not trusted further)."""
+        return min(max(tick.gap_s, tick.sample_gap_s, self.period_s), self.max_tick_gap_s)
 
     def _sample(self, tick) -> Fault | None:
         sample = tick.sample

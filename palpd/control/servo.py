@@ -27,8 +27,9 @@ from palpd.errors import ScanFault
 Vec3 = tuple[float, float, float]
 FAULT_HISTORY_TICKS = 20  # samples kept with a fault record
 RETRACT_ACCEL_MM_S2 = 5000.0
-FORCE_LIMITED_TICKS = 10
-NO_CURRENT = (0.0, 0.0, 0.0)  # commanding the capped force this long means pushing against something rigid
+FORCE_LIMITED_TICKS = 10  # commanding the capped force this long means pushing against something rigid
+DEVICE_CLOCK_WRAP_S = 2**32 * 1e-6  # the bridge's microsecond counter is 32 bits
+NO_CURRENT = (0.0, 0.0, 0.0)
 
 
 @dataclass(slots=True)
@@ -43,7 +44,8 @@ class Tick:
     normal_force_n: float
     sample: ForceSample
     status: int
-    gap_s: float = 0.0  # since the previous tick
+    gap_s: float = 0.0  # since the previous tick, on the host's clock
+    sample_gap_s: float = 0.0  # between the two encoder samples: the device's clock when it has one
 
 
 class ServoLoop:
@@ -57,6 +59,7 @@ class ServoLoop:
         self._smoothing = math.exp(-self._filter_rad_s * self.period_s)
         self._previous_tip: Vec3 | None = None
         self._previous_t: float | None = None
+        self._previous_device_t: float | None = None
         self._velocity: Vec3 = (0.0, 0.0, 0.0)
         self.retract_speed_mm_s = getattr(safety_settings, "retract_speed_mm_s", 60.0)
         self.retract_timeout_s = getattr(safety_settings, "retract_timeout_s", 0.5)
@@ -183,15 +186,27 @@ class ServoLoop:
         tip = (tip_m[0] * 1000.0, tip_m[1] * 1000.0, tip_m[2] * 1000.0)
         gap = 0.0 if self._previous_t is None else state.t_s - self._previous_t
         self._previous_t = state.t_s
-        self._update_velocity(tip, gap)
+        sample_gap = self._sample_gap_s(state.device_t_s, gap)
+        self._update_velocity(tip, sample_gap)
         force = self.forces.tissue_force(sample, q)
         normal = self.forces.normal_force(sample, q, force)
         if normal > self.max_contact_force_n:
             self.max_contact_force_n = normal
-        tick = Tick(state.t_s, q, tip, self._velocity, force, normal, sample, state.status, gap)
+        tick = Tick(state.t_s, q, tip, self._velocity, force, normal, sample, state.status, gap, sample_gap)
         self.last_tick = tick
         self.history.append((tick.t_s, tip, force))
         return tick
+
+    def _sample_gap_s(self, device_t_s: float | None, host_gap_s: float) -> float:
+        """The real time between this encoder sample and the previous one. A bridge stamps its samples
+        with its own microsecond clock (wrapping at 2**32 us); the host's receive times add the transport's
+        jitter, so a late reply followed by a prompt one would shrink the gap and inflate the speed. A
+        device clock that stands still or leaps is not believed: the host's gap is used instead."""
+        previous, self._previous_device_t = self._previous_device_t, device_t_s
+        if device_t_s is None or previous is None or host_gap_s <= 0.0:
+            return host_gap_s
+        device_gap_s = (device_t_s - previous) % DEVICE_CLOCK_WRAP_S
+        return device_gap_s if 0.0 < device_gap_s < 1.0 else host_gap_s
 
     def _update_velocity(self, tip: Vec3, dt_s: float) -> None:
         """Low-pass filtered differences over the real time between ticks, so a late tick is no speed spike."""

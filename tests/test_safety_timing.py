@@ -1,0 +1,121 @@
+"""Safety checks that measure motion over the real time between samples, so a late tick is not a fault."""
+import math
+from dataclasses import replace
+
+import pytest
+from hypothesis import given, settings as hypothesis_settings, strategies as st
+
+from drivers.interfaces import ForceSample
+from drivers.phantom import model
+from drivers.sim.faults import stall
+from drivers.sim.scene import Scene
+from palpd.bench import open_simulated_bench
+from palpd.config import Settings
+from palpd.control.safety import SafetySupervisor
+from palpd.control.servo import DEVICE_CLOCK_WRAP_S, Tick
+from palpd.control.tasks import MoveTo
+from palpd.errors import ScanFault
+
+SLOW_JOINTS_RAD_S = 0.8  # above the ~0.46 rad/s of an 80 mm/s move, below what a 3.5 ms late tick looks like per period
+LATE_S = 0.0035  # shorter than max_tick_gap_s (5 ms): a descheduled host, not a stalled loop
+
+
+def moving_bench(**safety):
+    settings = Settings().updated(safety={"max_joint_speed_rad_s": SLOW_JOINTS_RAD_S, **safety})
+    bench = open_simulated_bench(settings, Scene(name="t"))
+    bench.servo.start()
+    bench.servo.run(MoveTo((0.0, 0.0, 10.0), 80.0, 2000.0))
+    return bench
+
+
+def run_with(bench, at_tick, inject):
+    """Move 25 mm sideways at 80 mm/s, calling inject(bench) once at the given tick; returns the ticks."""
+    ticks = []
+
+    def hook(tick):
+        ticks.append(tick)
+        if len(ticks) == at_tick:
+            inject(bench)
+
+    bench.servo.tick_hook = hook
+    bench.servo.run(MoveTo((25.0, 0.0, 10.0), 80.0, 2000.0))
+    return ticks
+
+
+def late_tick(bench):
+    stall(bench.clock, LATE_S)
+
+
+def test_a_late_tick_during_fast_motion_is_no_encoder_jump_and_no_speed_spike():
+    bench = moving_bench()
+    ticks = run_with(bench, 200, late_tick)
+    assert bench.servo.fault is None
+    before, after = ticks[199], ticks[200]
+    step_rad = max(abs(a - b) for a, b in zip(after.q, before.q))
+    assert after.gap_s == pytest.approx(LATE_S, abs=0.0006)
+    assert step_rad > SLOW_JOINTS_RAD_S * bench.servo.period_s + max(model.RAD_PER_COUNT)  # one-period rule trips
+    speeds = [math.dist(t.velocity_mm_s, (0, 0, 0)) for t in ticks[195:210]]
+    assert max(speeds) < 1.3 * 80.0  # the velocity is over the real gap: 3.5x the step is not 3.5x the speed
+
+
+def test_an_encoder_jump_is_still_caught_within_one_tick_during_the_same_motion():
+    bench = moving_bench()
+    jumped_at = []
+
+    def jump(b):
+        jumped_at.append(b.clock.now())
+        b.world.faults.encoder_jump_counts = (0, 40, 0)  # 5.5 mrad: more than 3.5 ms of motion at the limit
+
+    with pytest.raises(ScanFault, match="encoder_jump"):
+        run_with(bench, 200, jump)
+    assert bench.servo.fault.t_s - jumped_at[0] <= bench.servo.period_s + 1e-9
+    assert bench.world.amplifiers_on is False and bench.world.currents_a == (0.0, 0.0, 0.0)
+
+
+def test_a_gap_longer_than_max_tick_gap_is_still_a_loop_stall():
+    bench = moving_bench()
+    with pytest.raises(ScanFault, match="loop_stall"):
+        run_with(bench, 200, lambda b: stall(b.clock, 0.008))
+
+
+def test_the_bridges_wrapping_device_clock_gives_the_sample_gap():
+    bench = moving_bench()
+    robot, read = bench.servo.robot, bench.servo.robot.read
+    offset_s = DEVICE_CLOCK_WRAP_S - bench.clock.now() - 0.1  # the 32-bit microsecond counter wraps mid-move
+    robot.read = lambda: (lambda s: replace(s, device_t_s=(s.t_s + offset_s) % DEVICE_CLOCK_WRAP_S))(read())
+    ticks = run_with(bench, 200, late_tick)
+    assert bench.servo.fault is None and len(ticks) > 250
+    assert all(t.sample_gap_s == pytest.approx(t.gap_s, abs=1e-6) for t in ticks[1:])
+    assert max(t.sample_gap_s for t in ticks) == pytest.approx(LATE_S, abs=0.0006)
+
+
+def supervisor():
+    return SafetySupervisor(Settings().safety, (60.0, 60.0), period_s=0.001)
+
+
+def tick_at(t_s, q, gap_s):
+    sample = ForceSample(t_s, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    return Tick(t_s, q, (0.0, 0.0, 10.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, sample, 0, gap_s, gap_s)
+
+
+@hypothesis_settings(max_examples=200, deadline=None)
+@given(gap_s=st.floats(0.0002, 0.005), fraction=st.floats(-0.99, 0.99), joint=st.integers(0, 2))
+def test_motion_within_the_joint_speed_limit_over_any_legal_gap_passes(gap_s, fraction, joint):
+    check = supervisor()
+    limit = Settings().safety.max_joint_speed_rad_s
+    q = [0.1, 0.3, 0.2]
+    assert check.check(tick_at(1.0, tuple(q), 0.001)) is None
+    q[joint] += fraction * limit * max(gap_s, 0.001)
+    assert check.check(tick_at(1.0 + gap_s, tuple(q), gap_s)) is None
+
+
+@hypothesis_settings(max_examples=200, deadline=None)
+@given(gap_s=st.floats(0.0, 0.005), sign=st.sampled_from((-1, 1)), joint=st.integers(0, 2))
+def test_a_jump_beyond_the_longest_legal_gap_is_always_caught(gap_s, sign, joint):
+    check = supervisor()
+    safety = Settings().safety
+    q = [0.1, 0.3, 0.2]
+    assert check.check(tick_at(1.0, tuple(q), 0.001)) is None
+    q[joint] += sign * 1.01 * (safety.max_joint_speed_rad_s * safety.max_tick_gap_s + model.RAD_PER_COUNT[joint])
+    fault = check.check(tick_at(1.0 + gap_s, tuple(q), gap_s))
+    assert fault is not None and fault.code == "encoder_jump"
