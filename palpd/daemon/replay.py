@@ -6,14 +6,18 @@ the last one recorded in the MCAP files.
 """
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
-from palpd.daemon.learning import make_estimator
+from palpd.daemon.jobs import resolved_scan
+from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.mcap import read_messages
-from palpd.daemon.session import JOURNAL, read_journal
+from palpd.daemon.session import JOURNAL, META, read_journal
 from palpd.errors import PalpdError
-from palpd.stiffness import FitRejected, fit_linear
+from palpd.stiffness import FitRejected
+from palpd.stiffness.palpation import fit_palpation
 
 TOLERANCE = 1e-6
 
@@ -41,19 +45,41 @@ def recorded(session_dir: Path) -> tuple[list[dict], dict | None]:
 
 def replay(session_dir: Path, settings) -> dict:
     traces, recorded_estimate = recorded(session_dir)
-    estimator = make_estimator(settings)
+    scan = session_scan(session_dir, settings)
+    settings = scan_settings(settings, scan)
+    estimator = make_estimator(settings, scan, scan["size_mm"])
     worst_k = 0.0
     for trace in traces:
-        try:
-            k = fit_linear(trace["depth_mm"], trace["force_n"]).stiffness_n_per_mm
-        except FitRejected:
-            k = None
+        k, sd = refit(trace, settings)
         if trace.get("stiffness_n_per_mm") is not None and k is not None:
             worst_k = max(worst_k, abs(k - trace["stiffness_n_per_mm"]))
-        estimator.observe(trace["xy_mm"], k)
+        estimator.observe(trace["xy_mm"], k, sd)
     estimate = estimator.estimate()
     return {"palpations": len(traces), "max_stiffness_difference_n_per_mm": worst_k, "estimate": estimate,
             "recorded": recorded_estimate, "reproduced": same_lumps(estimate, recorded_estimate)}
+
+
+def session_scan(session_dir: Path, settings) -> dict:
+    """The scan's args as the daemon kept them (its region above all); the defaults without session.json."""
+    try:
+        scan = json.loads((session_dir / META).read_text())["scan"]
+    except (OSError, ValueError, KeyError):
+        scan = {}
+    defaults = {"strategy": "raster", "max_palpations": None, "seed": 0, "center_mm": (0.0, 0.0), "size_mm": None,
+                "depth_mm": None, "speed_mm_s": None}
+    return resolved_scan(defaults | scan, settings.tissue.size_mm, settings.learner.max_palpations)
+
+
+def refit(trace: dict, settings) -> tuple[float | None, float]:
+    """The palpation's stiffness and its standard error, fitted as the scan fitted it."""
+    record = SimpleNamespace(depth_mm=trace["depth_mm"], force_n=trace["force_n"],
+                             unload_depth_mm=trace.get("unload_depth_mm", []),
+                             unload_force_n=trace.get("unload_force_n", []))
+    try:
+        fit = fit_palpation(record, settings.stiffness, settings.servo.rate_hz)
+    except FitRejected:
+        return None, 0.0
+    return fit.stiffness_n_per_mm, fit.stiffness_se_n_per_mm
 
 
 def same_lumps(ours: dict, theirs: dict | None) -> bool:
