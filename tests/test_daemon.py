@@ -79,6 +79,7 @@ def test_a_client_drives_a_scan_and_gets_the_same_estimate_by_request(daemon):
             EVENT_MODELS[topic].model_validate(payload)
     replayed = subprocess.run([sys.executable, "-m", "palpd", "replay", str(session)], capture_output=True, text=True)
     assert replayed.returncode == 0 and "the recorded estimate is reproduced" in replayed.stdout, replayed.stdout
+    assert "(25 re-segmented from raw samples)" in replayed.stdout, replayed.stdout  # not the journal's traces
 
 
 def test_sigterm_mid_scan_stops_safely_and_exits_0(daemon):

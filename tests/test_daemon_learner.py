@@ -1,5 +1,6 @@
 """The online learner inside `palpd serve` (real daemon processes): active scans, crash recovery, a lost servo."""
 import math
+import re
 import signal
 import subprocess
 import sys
@@ -67,6 +68,8 @@ def test_kill_9_mid_active_scan_then_resume_continues_where_the_learner_says_and
         second.close()
     replayed = subprocess.run([sys.executable, "-m", "palpd", "replay", str(session)], capture_output=True, text=True)
     assert replayed.returncode == 0 and "the recorded estimate is reproduced" in replayed.stdout, replayed.stdout
+    resegmented = int(re.search(r"\((\d+) re-segmented", replayed.stdout).group(1))
+    assert resegmented >= len(entries) - len(journaled)  # at least the resumed run's, cut from its raw samples
 
 
 def servo_child_pid(daemon_pid: int) -> int:

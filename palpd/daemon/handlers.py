@@ -68,7 +68,7 @@ def _start(sup, command) -> None:
     sup.job = ScanJob(sup.session, scan_settings(sup.settings, scan), planner, sup.estimator)
     sup.job.stop_reason = None
     sup.close_recording()  # the probes' recording, if single palpations came first
-    sup.open_recording(sup.session)
+    sup.open_recording(sup.session)  # names itself in the job, whose journal entries point at it
     sup.worker.submit(sup.job)
     sup.set_state("scanning", f"scan {scan['strategy']}")
     sup.commands.reply(command, session=sup.session.name, expected_total=planner.expected_total,

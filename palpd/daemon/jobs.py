@@ -46,6 +46,7 @@ def journal_entry(index: int, probe, t_s: float) -> dict:
         "rejected": probe.rejected,
         # the way out too: a damped model's fit uses it, and replay refits exactly what the scan fitted
         "unload_depth_mm": record.unload_depth_mm, "unload_force_n": record.unload_force_n,
+        "t_first_tick_s": record.t_first_tick_s, "t_end_s": record.t_end_s,  # its raw samples, for replay
     }
 
 
@@ -65,6 +66,7 @@ class ScanJob:
     def __init__(self, session, settings, planner, estimator) -> None:
         self.session, self.settings, self.planner, self.estimator = session, settings, planner, estimator
         self.finished = False
+        self.recording = ""  # the MCAP file of this run, named by the supervisor
 
     def __call__(self, worker) -> None:
         report = worker.scan(self.settings, self.planner, lambda done, total, probe: self._on_probe(worker, probe))
@@ -73,6 +75,7 @@ class ScanJob:
 
     def _on_probe(self, worker, probe) -> None:
         entry = journal_entry(len(self.session.entries), probe, worker.bench.clock.now())
+        entry["recording"] = self.recording  # whose raw samples hold it (each run's servo clock starts anew)
         self.session.journal(entry)
         self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0)
         publish_entry(worker, entry)

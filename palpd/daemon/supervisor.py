@@ -200,7 +200,10 @@ class Supervisor:
         return f"{fields['state']}: {fields['palpations']} palpations" + (f", {self.message}" if self.message else "")
 
     def open_recording(self, session) -> None:
-        self.recording = McapWriter(session.next_recording(), recording_schemas())
+        path = session.next_recording()
+        self.recording = McapWriter(path, recording_schemas())
+        if self.job is not None:
+            self.job.recording = path.name
         self.samples.start(self.bench.servo)
 
     def close_recording(self) -> None:
