@@ -66,12 +66,20 @@ def test_a_client_drives_a_scan_and_gets_the_same_estimate_by_request(daemon):
     assert sum(t == "palpation" for t, _ in recorded) == 25
     official = read_closed(session / "recording-1.mcap")  # the official reader agrees, schemas and all
     assert [(t, p) for t, p, _ in official["messages"]] == recorded
+    samples = [(p, log_ns) for t, p, log_ns in official["messages"] if t == "samples"]
+    ticks = [p["t"] for p, _ in samples]  # raw 1 kHz ticks, drained from the servo ring as the scan ran
+    gaps = [b - a for a, b in zip(ticks, ticks[1:])]
+    assert len(ticks) > 1000 and min(gaps) > 0, "samples out of time order"
+    assert (ticks[-1] - ticks[0]) / len(ticks) == pytest.approx(0.001, rel=0.01)  # ~one sample per servo tick
+    assert [n for _, n in samples] == sorted(n for _, n in samples)  # log times in order too
+    assert status["samples_lost"] == 0
     assert set(official["schemas"]) >= set(EVENT_MODELS)
     for topic, payload, _ in official["messages"]:
         if topic in EVENT_MODELS:
             EVENT_MODELS[topic].model_validate(payload)
     replayed = subprocess.run([sys.executable, "-m", "palpd", "replay", str(session)], capture_output=True, text=True)
     assert replayed.returncode == 0 and "the recorded estimate is reproduced" in replayed.stdout, replayed.stdout
+    assert "(25 re-segmented from raw samples)" in replayed.stdout, replayed.stdout  # not the journal's traces
 
 
 def test_sigterm_mid_scan_stops_safely_and_exits_0(daemon):

@@ -5,12 +5,14 @@ import subprocess
 import sys
 import threading
 import time
+from pathlib import Path
 
 import pytest
 import zmq
 
 from daemon_client import Daemon, receive
 from mcap_official import read_closed
+from palpd.daemon.mcap import read_messages
 from palpd.daemon.session import read_journal
 
 
@@ -43,12 +45,26 @@ def test_a_subscriber_that_never_reads_does_not_stall_the_daemon(daemon):
     assert daemon.wait_for(lambda s: s["state"] == "ready", what="ready")["palpations"] == 25
 
 
+def wait_until_palpating(sessions: Path, timeout_s: float = 20.0) -> None:
+    """The raw samples in the recording (flushed each second) show 2 s of robot time: past the move and
+    tare, so the first palpation is under way (a SIGTERM before it would just end the scan)."""
+    give_up = time.monotonic() + timeout_s
+    while time.monotonic() < give_up:
+        for recording in sessions.glob("*/recording-1.mcap"):
+            ticks = [p["t"] for t, p in read_messages(recording) if t == "samples"]
+            if ticks and ticks[-1] - ticks[0] > 2.0:
+                return
+        time.sleep(0.05)
+    raise AssertionError("the scan never reached its first palpation")
+
+
 def test_sigterm_aborts_a_palpation_that_outlasts_stop_timeout(tmp_path):
     daemon = Daemon(tmp_path, env={"PALPD_DAEMON__STOP_TIMEOUT_S": "0.3"})
     try:
         daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
         # 5 mm at 0.02 mm/s: one palpation is 250 s of robot time, far more than any wall time here.
         assert daemon.call("scan.start", {"max_palpations": 4, "depth_mm": 5.0, "speed_mm_s": 0.02})["ok"]
+        wait_until_palpating(tmp_path / "state" / "sessions")
         signalled = time.monotonic()
         daemon.signal(signal.SIGTERM)
         assert daemon.wait() == 0, daemon.process.stderr.read()

@@ -132,3 +132,24 @@ def test_a_hung_child_is_noticed_by_its_missing_heartbeat(monkeypatch):
 def test_an_unsafe_configuration_is_refused_by_the_child_with_the_same_error():
     with pytest.raises(ConfigError, match="force_cap_n"):
         open_servo_bench(Settings().updated(safety={"force_cap_n": 100.0}), Scene(name="c"))
+
+
+def test_a_fault_latched_between_tasks_is_seen_by_check_idle_and_a_dead_child_is_lost():
+    """On the wall clock the idle loop keeps watching: a trip with nobody waiting on the pipe still shows."""
+    bench = open_servo_bench(Settings(), Scene(name="p", tissue={"stiffness_n_per_mm": 0.6}), realtime=True)
+    servo = bench.servo
+    try:
+        assert servo.check_idle() is None and not servo.lost
+        servo.ring.set_estop(True)  # as the bridge's e-stop would, with no task running
+        give_up = time.monotonic() + 5.0
+        while servo.check_idle() is None and time.monotonic() < give_up:
+            time.sleep(0.01)
+        assert servo.fault is not None and servo.fault.code == "estop" and not servo.lost
+        servo.reset()
+        assert servo.check_idle() is None
+        os.kill(servo.pid, signal.SIGKILL)
+        servo.process.join(5.0)
+        fault = servo.check_idle()
+        assert fault.code == "servo_lost" and "exited" in fault.message and servo.lost
+    finally:
+        servo.close()

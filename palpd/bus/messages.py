@@ -32,6 +32,7 @@ class Status(Event):
     session: str = ""  # the session directory's name
     expected_total: int = 0  # palpations the scan plans (0 when no scan)
     resumable: bool = False  # an unfinished session waits for scan.start {"resume": true}
+    samples_lost: int = 0  # raw samples the recorder missed (the servo ring lapped it); should stay 0
 
 
 class Palpation(Event):
@@ -107,7 +108,8 @@ PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 class ScanStartArgs(_Args):
     strategy: Literal["raster", "random", "active"] = "raster"
-    max_palpations: Annotated[int, Field(ge=1, le=10000)] = 81
+    # None: 81 for raster/random; for active, learner.max_palpations (its own rule usually stops it sooner)
+    max_palpations: Optional[Annotated[int, Field(ge=1, le=10000)]] = None
     seed: Annotated[int, Field(ge=0)] = 0
     # The region to palpate (tissue frame); default: the whole palpable rectangle.
     center_mm: tuple[FiniteFloat, FiniteFloat] = (0.0, 0.0)

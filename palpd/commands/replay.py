@@ -16,7 +16,7 @@ def run(args) -> int:
     from palpd.daemon.replay import replay
 
     result = replay(Path(args.session_dir), load_settings(args.config))
-    print(f"{result['palpations']} palpations refitted, largest stiffness difference "
+    print(f"{result['palpations']} palpations refitted ({result['segmented']} re-segmented from raw samples), largest stiffness difference "
           f"{result['max_stiffness_difference_n_per_mm']:.2e} N/mm")
     for i, lump in enumerate(result["estimate"]["lumps"], 1):
         (x, y), r = lump["center_mm"], lump["radius_mm"]

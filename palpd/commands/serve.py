@@ -28,10 +28,15 @@ def run(args) -> int:
         scene = load_scene(scene_path)
     except DriverError as exc:
         raise ConfigError(str(exc)) from None
-    bench = open_servo_bench(settings, scene, seed=settings.scan.seed, realtime=settings.daemon.realtime)
+    def reopen_bench():
+        return open_servo_bench(settings, scene, seed=settings.scan.seed, realtime=settings.daemon.realtime)
+
+    bench = reopen_bench()
     try:
-        supervisor = Supervisor(settings, bench)
+        supervisor = Supervisor(settings, bench, reopen_bench)
         supervisor.open()
         return supervisor.serve()
     finally:
         bench.servo.close()  # idempotent: a clean shut-down has closed it already
+        if "supervisor" in locals():
+            supervisor.bench.servo.close()  # the one reset started, if the first was lost

@@ -36,6 +36,7 @@ class PalpationRecord:
     stop_reason: str = ""
     t_start_s: float = 0.0
     t_end_s: float = 0.0
+    t_first_tick_s: float | None = None  # the task's first tick: where its segmenter began (replay starts there)
 
 
 class Palpation:
@@ -54,6 +55,8 @@ class Palpation:
 
     def step(self, tick) -> Vec3:
         dt = 0.0 if self._last_t is None else tick.t_s - self._last_t
+        if self._last_t is None:
+            self.record.t_first_tick_s = tick.t_s
         self._last_t = tick.t_s
         found = self.segmenter.push(tick.t_s, tick.tip_mm, tick.normal_force_n)
         if found is not None and self._segment is None:

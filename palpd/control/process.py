@@ -118,6 +118,8 @@ class ServoProcess:
             servo.forces.tare(args[0])
         elif command == "timing":
             payload = servo.timing.summary()
+        elif command == "state":
+            pass  # the reply carries the state (a fault latched between tasks)
         elif command == "timing_reset":
             servo.timing.reset()
         elif command != "quit":

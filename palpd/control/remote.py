@@ -14,7 +14,7 @@ import time
 
 from palpd.bench import Bench
 from palpd.control.process import servo_main
-from palpd.control.ring import SampleRing
+from palpd.control.ring import FLAG_FAULT, SampleRing
 from palpd.control.safety import Fault
 from palpd.errors import PalpdError, ScanFault
 
@@ -140,6 +140,34 @@ class RemoteServo:
             self._last_header = self.ring.header()
         return self._last_header
 
+    @property
+    def lost(self) -> bool:
+        """The child is gone (or was killed as hung): only a new servo process helps."""
+        return (self.fault is not None and self.fault.code == "servo_lost") or not self.process.is_alive()
+
+    def check_idle(self) -> Fault | None:
+        """Between tasks: the fault the loop latched on its own (e-stop, robot status) or a lost child, now."""
+        if self._closed:
+            return self.fault
+        if not self.process.is_alive():
+            self._latch_lost(f"servo process exited (code {self.process.exitcode})")
+        elif self.health_age_s() > UNRESPONSIVE_S:
+            self._latch_lost(f"servo loop showed no heartbeat for {UNRESPONSIVE_S:.0f} s")
+        elif self.fault is None and self.ring.last_flags() & FLAG_FAULT:
+            try:
+                self.call("state")  # the reply's state carries the fault
+            except ScanFault:
+                pass
+        return self.fault
+
+    def read_samples(self, since: int | None):
+        """(samples, next index, lost) from the ring since `since` (None: from now on); nothing once closed."""
+        if self.ring is None:
+            return [], since or 0, 0
+        if since is None:
+            return [], self.ring.header()["written"], 0
+        return self.ring.read_new(since)
+
     def health_age_s(self) -> float:
         """Seconds since the loop last showed it is alive (ticking, or waiting for work)."""
         beat = self.header()["heartbeat"]
@@ -188,11 +216,14 @@ class RemoteServo:
 
     def _lost(self, why: str):
         """The child is gone or hung: kill it (the bridge watchdog cuts the current), latch, raise."""
+        self._latch_lost(why)
+        raise ScanFault(f"servo_lost: {why}; motors off")
+
+    def _latch_lost(self, why: str) -> None:
         self.process.kill()
         self._closed = True
         t_s = self.last_tick.t_s if self.last_tick is not None else 0.0
         self.fault = Fault("servo_lost", why, t_s)
-        raise ScanFault(f"servo_lost: {why}; motors off")
 
     def close(self) -> None:
         """Quit the child (motors off on its way out), or kill it if it does not go within QUIT_TIMEOUT_S."""

@@ -79,6 +79,11 @@ class SampleRing:
         return {"written": index, "heartbeat": beat, "ticks": ticks, "overruns": overruns,
                 "estop": bool(estop), "now_s": now_s}
 
+    def last_flags(self) -> int:
+        """The flags of the newest sample (FLAG_FAULT: the loop has latched a fault); 0 before the first."""
+        end = struct.unpack_from("<Q", self._buffer, _INDEX)[0]
+        return 0 if end == 0 else int(self._slots[(end - 1) % self.capacity]["flags"])
+
     def read_new(self, since: int) -> tuple[np.ndarray, int, int]:
         """Samples written since index `since`: (samples, next index to ask for, samples lost)."""
         end = struct.unpack_from("<Q", self._buffer, _INDEX)[0]

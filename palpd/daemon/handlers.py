@@ -1,8 +1,8 @@
 """What each command does to the supervisor, and which lifecycle states allow it."""
 from __future__ import annotations
 
-from palpd.daemon.jobs import ProbeJob, ScanJob, region_plan, region_problem, reloaded_plan
-from palpd.daemon.learning import make_estimator
+from palpd.daemon.jobs import ProbeJob, RestartServoJob, ScanJob, region_problem, resolved_scan, session_plan
+from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.session import PROBES, Session
 
 ALLOWED_STATES = {
@@ -38,9 +38,6 @@ def estimate_get(sup, command) -> None:
 
 def scan_start(sup, command) -> None:
     args = command.args
-    if args.strategy == "active":
-        sup.commands.fail(command, "unavailable", "strategy active needs the online learner, not in this version")
-        return
     if args.resume:
         _resume(sup, command)
         return
@@ -51,9 +48,10 @@ def scan_start(sup, command) -> None:
         return
     if sup.session is not None and sup.session.meta["status"] == "unfinished":
         sup.session.finish("abandoned")
+    scan = resolved_scan(scan, sup.bench.tissue_size_mm, sup.settings.learner.max_palpations)
     sup.session = Session.create(sup.sessions_dir, scan)
-    sup.estimator = make_estimator(sup.settings)
-    _start(sup, command, region_plan(scan, sup.bench.tissue_size_mm))
+    sup.estimator = make_estimator(scan_settings(sup.settings, scan), scan, sup.bench.tissue_size_mm)
+    _start(sup, command)
 
 
 def _resume(sup, command) -> None:
@@ -61,18 +59,16 @@ def _resume(sup, command) -> None:
     if session is None or session.meta["status"] != "unfinished":
         sup.commands.fail(command, "invalid_state", "there is no unfinished session to resume")
         return
-    _start(sup, command, reloaded_plan(session, sup.bench.tissue_size_mm))
+    _start(sup, command)  # the estimator was rebuilt from the journal when the session was recovered
 
 
-def _start(sup, command, planner) -> None:
+def _start(sup, command) -> None:
     scan = sup.session.meta["scan"]
-    settings = sup.settings.updated(
-        scan={"strategy": scan["strategy"], "max_palpations": scan["max_palpations"], "seed": scan["seed"]},
-        palpation={"depth_mm": scan["depth_mm"], "speed_mm_s": scan["speed_mm_s"]})
-    sup.job = ScanJob(sup.session, settings, planner, sup.estimator)
+    planner = session_plan(scan, sup.estimator, len(sup.session.entries))
+    sup.job = ScanJob(sup.session, scan_settings(sup.settings, scan), planner, sup.estimator)
     sup.job.stop_reason = None
     sup.close_recording()  # the probes' recording, if single palpations came first
-    sup.open_recording(sup.session)
+    sup.open_recording(sup.session)  # names itself in the job, whose journal entries point at it
     sup.worker.submit(sup.job)
     sup.set_state("scanning", f"scan {scan['strategy']}")
     sup.commands.reply(command, session=sup.session.name, expected_total=planner.expected_total,
@@ -94,6 +90,12 @@ def estop(sup, command) -> None:
 
 
 def reset(sup, command) -> None:
+    if sup.bench.servo.lost:  # the servo process is gone: start a new one (in the worker: it takes seconds)
+        sup.job = RestartServoJob(sup.reopen_bench)
+        sup.worker.submit(sup.job)
+        sup.set_state("configure", "restarting the servo process")
+        sup.commands.reply(command, state=sup.state, restarting=True)
+        return
     sup.bench.servo.reset()  # clears the e-stop input and the latched fault in the servo process
     sup.set_state("ready", "fault cleared")
     sup.commands.reply(command, state=sup.state)
@@ -127,6 +129,8 @@ HANDLERS = {"status": status, "estimate.get": estimate_get, "scan.start": scan_s
 
 def job_ended(sup, fault: dict | None) -> None:
     job, sup.job = sup.job, None
+    if isinstance(job, RestartServoJob) and job.bench is not None:
+        sup.bench = job.bench
     if isinstance(job, ScanJob) and job.finished:
         sup.session.finish("finished")
     elif isinstance(job, ScanJob) and job.stop_reason == "stopped":
@@ -135,6 +139,7 @@ def job_ended(sup, fault: dict | None) -> None:
         sup.publish("fault", sup.bench.clock.now(), code=fault["code"], message=fault["message"])
         sup.set_state("fault", fault["code"])
     else:
-        sup.set_state("ready", "scan finished" if getattr(job, "finished", False) else "")
+        sup.set_state("ready", "scan finished" if getattr(job, "finished", False) else
+                      "servo process restarted" if isinstance(job, RestartServoJob) else "")
     if isinstance(job, ScanJob):
         sup.close_recording()  # after the last status and fault, so the recording has them

@@ -1,16 +1,30 @@
 """Jobs the scan worker runs: a scan that journals and publishes each palpation, a single probe, a tare."""
 from __future__ import annotations
 
+from palpd.control.safety import Fault
 from palpd.control.tasks import MoveTo
+from palpd.daemon.learning import DEFAULT_MAX_PALPATIONS, LearnerPlan
+from palpd.errors import PalpdError, ScanFault
 from palpd.scan import PARK_HEIGHT_MM, FixedPlan, palpate, plan
 
 
-def region_plan(args, tissue_size_mm) -> FixedPlan:
-    """The scan's points: the strategy over the requested region (default: the whole tissue)."""
-    size = args["size_mm"] or tissue_size_mm
-    cx, cy = args["center_mm"]
-    base = plan(args["strategy"], size, args["max_palpations"], args["seed"])
-    return FixedPlan([(x + cx, y + cy) for x, y in base.points])
+def resolved_scan(args: dict, tissue_size_mm, learner_max_palpations: int) -> dict:
+    """scan.start's args with the defaults filled in, as the session keeps them (replay needs the region)."""
+    default_budget = learner_max_palpations if args["strategy"] == "active" else DEFAULT_MAX_PALPATIONS
+    return args | {"size_mm": list(args["size_mm"] or tissue_size_mm), "center_mm": list(args["center_mm"]),
+                   "max_palpations": args["max_palpations"] or default_budget}
+
+
+def session_plan(scan: dict, estimator, done: int):
+    """The planner of a session's scan with `done` palpations journaled: the learner's, or the fixed
+    plan's remaining points (fixed plans are deterministic)."""
+    if scan["strategy"] == "active":
+        return LearnerPlan(estimator)
+    cx, cy = scan["center_mm"]
+    base = plan(scan["strategy"], scan["size_mm"], scan["max_palpations"], scan["seed"])
+    planner = FixedPlan([(x + cx, y + cy) for x, y in base.points])
+    planner.points = planner.points[done:]
+    return planner
 
 
 def region_problem(args, tissue_size_mm) -> str | None:
@@ -30,6 +44,9 @@ def journal_entry(index: int, probe, t_s: float) -> dict:
         "stiffness_n_per_mm": probe.stiffness_n_per_mm,
         "stiffness_sd_n_per_mm": probe.fit.stiffness_se_n_per_mm if probe.fit else None,
         "rejected": probe.rejected,
+        # the way out too: a damped model's fit uses it, and replay refits exactly what the scan fitted
+        "unload_depth_mm": record.unload_depth_mm, "unload_force_n": record.unload_force_n,
+        "t_first_tick_s": record.t_first_tick_s, "t_end_s": record.t_end_s,  # its raw samples, for replay
     }
 
 
@@ -49,6 +66,7 @@ class ScanJob:
     def __init__(self, session, settings, planner, estimator) -> None:
         self.session, self.settings, self.planner, self.estimator = session, settings, planner, estimator
         self.finished = False
+        self.recording = ""  # the MCAP file of this run, named by the supervisor
 
     def __call__(self, worker) -> None:
         report = worker.scan(self.settings, self.planner, lambda done, total, probe: self._on_probe(worker, probe))
@@ -57,6 +75,7 @@ class ScanJob:
 
     def _on_probe(self, worker, probe) -> None:
         entry = journal_entry(len(self.session.entries), probe, worker.bench.clock.now())
+        entry["recording"] = self.recording  # whose raw samples hold it (each run's servo clock starts anew)
         self.session.journal(entry)
         self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0)
         publish_entry(worker, entry)
@@ -83,9 +102,18 @@ class ProbeJob:
         publish_entry(worker, entry)
 
 
-def reloaded_plan(session, tissue_size_mm) -> FixedPlan:
-    """The session's plan without the points already journaled (plans are deterministic)."""
-    planner = region_plan(session.meta["scan"], tissue_size_mm)
-    done = len(session.entries)
-    planner.points = planner.points[done:]
-    return planner
+class RestartServoJob:
+    """After a servo_lost fault: a new servo process for the same bench; the worker drives it from then on."""
+
+    def __init__(self, reopen_bench) -> None:
+        self.reopen_bench, self.bench = reopen_bench, None
+
+    def __call__(self, worker) -> None:
+        lost = worker.bench
+        try:
+            bench = self.reopen_bench()
+        except PalpdError as exc:  # still lost: the job ends with the old servo's servo_lost fault
+            lost.servo.fault = Fault("servo_lost", f"restarting the servo process failed: {exc}", 0.0)
+            raise ScanFault(str(exc)) from None
+        lost.servo.close()  # its shared memory and pipe; the process is gone already
+        worker.bench = self.bench = bench

@@ -1,31 +1,82 @@
-"""The daemon's estimator: the one place where the online learner will replace the §3.4 batch estimate.
+"""The daemon's estimator: the online learner (palpd.learner) over the scan's region, and its active planner.
 
-Anything with observe(xy_mm, stiffness_n_per_mm, sd) and estimate() -> dict fits
-here; `make_estimator` is the single switch (the learner issue plugs its class in).
+One learner per session: every journaled palpation is observed once (live, on
+recovery, in replay, always in journal order with the same numbers), so the
+live, recovered and replayed estimates are the same. The learner's grid is
+centred on its own origin; a scan's region may sit anywhere on the tissue, so
+points go in and lumps and probes come out shifted by the region's centre.
 """
 from __future__ import annotations
 
-from palpd.estimate import estimate_lumps
+from palpd.learner.planner import make_learner
+
+DEFAULT_MAX_PALPATIONS = 81  # raster and random, when scan.start does not say
 
 
-class BatchEstimator:
-    """Re-runs the seed paper's §3.4 estimate over every good palpation so far."""
+def scan_settings(settings, scan: dict):
+    """The settings a session's scan ran with (its strategy, budget, seed, depth and speed)."""
+    return settings.updated(
+        scan={"strategy": scan["strategy"], "max_palpations": scan["max_palpations"], "seed": scan["seed"]},
+        palpation={"depth_mm": scan["depth_mm"], "speed_mm_s": scan["speed_mm_s"]})
 
-    def __init__(self, min_contrast: float) -> None:
-        self.min_contrast = min_contrast
-        self.xy_mm: list[tuple[float, float]] = []
+
+class LearnerEstimator:
+    """The learner over a rectangle of the tissue (tissue-frame points in, tissue-frame answers out)."""
+
+    def __init__(self, settings, center_mm, size_mm, max_palpations: int, seed: int = 0) -> None:
+        self.cx, self.cy = float(center_mm[0]), float(center_mm[1])
+        self.max_palpations = max_palpations
+        self.learner = make_learner(settings, tuple(size_mm), seed)
+        self.xy_mm: list[tuple[float, float]] = []  # the stiffness points, for estimate.get and plots
         self.k_n_per_mm: list[float] = []
+        self._next = None  # (palpations seen, answer): next_probe is asked by the planner and the estimate
 
     def observe(self, xy_mm, stiffness_n_per_mm: float | None, sd_n_per_mm: float = 0.0) -> None:
-        if stiffness_n_per_mm is not None:  # a rejected fit tells nothing about stiffness
-            self.xy_mm.append(tuple(xy_mm))
-            self.k_n_per_mm.append(stiffness_n_per_mm)
+        self.learner.observe((xy_mm[0] - self.cx, xy_mm[1] - self.cy), stiffness_n_per_mm, sd_n_per_mm)
+        if self.learner.gp.n > len(self.k_n_per_mm):  # the learner took it as a stiffness point
+            self.xy_mm.append((float(xy_mm[0]), float(xy_mm[1])))
+            self.k_n_per_mm.append(float(stiffness_n_per_mm))
+
+    def next_probe(self) -> tuple[float, float] | None:
+        """Where the learner wants to palpate next (tissue frame), or None once sure enough or out of budget."""
+        seen = self.learner.points
+        if self._next is None or self._next[0] != seen:
+            xy = self.learner.next_probe(self.max_palpations)
+            self._next = (seen, None if xy is None else (float(xy[0]) + self.cx, float(xy[1]) + self.cy))
+        return self._next[1]
 
     def estimate(self) -> dict:
-        """Fields of the bus `estimate` event (points, lumps)."""
-        lumps = estimate_lumps(self.xy_mm, self.k_n_per_mm, self.min_contrast) if self.xy_mm else []
-        return {"points": len(self.xy_mm), "lumps": [lump.as_dict() for lump in lumps]}
+        """Fields of the bus `estimate` event."""
+        return {"points": len(self.k_n_per_mm), "lumps": [self._shifted(lump.as_dict()) for lump in self.learner.lumps()],
+                "next_probe_mm": self.next_probe(), "ambiguous_area_mm2": self.learner.ambiguous_area_mm2()}
+
+    def _shifted(self, lump: dict) -> dict:
+        x, y = lump["center_mm"]
+        lump["center_mm"] = [round(x + self.cx, 3), round(y + self.cy, 3)]
+        lump["boundary_mm"] = [[round(bx + self.cx, 3), round(by + self.cy, 3)] for bx, by in lump["boundary_mm"]]
+        return lump
 
 
-def make_estimator(settings) -> BatchEstimator:
-    return BatchEstimator(settings.scan.min_contrast)
+class LearnerPlan:
+    """The active strategy: palpate where the session's learner says, until its stopping rule or the budget.
+
+    It only asks: the scan job feeds the same learner each palpation once it is journaled.
+    """
+
+    def __init__(self, estimator: LearnerEstimator) -> None:
+        self.estimator = estimator
+        self.expected_total = estimator.max_palpations
+
+    def next_probe(self):
+        return self.estimator.next_probe()
+
+    def observe(self, probe) -> None:
+        """Nothing: the job observes the journaled entry into the estimator (one learner, fed once)."""
+
+
+def make_estimator(settings, scan: dict | None, tissue_size_mm) -> LearnerEstimator:
+    """The estimator of a session's scan (None: no scan yet, the whole tissue). `settings`: the scan's own."""
+    scan = scan or {}
+    size = scan.get("size_mm") or tissue_size_mm
+    budget = scan.get("max_palpations") or settings.learner.max_palpations
+    return LearnerEstimator(settings, scan.get("center_mm") or (0.0, 0.0), size, budget, scan.get("seed") or 0)

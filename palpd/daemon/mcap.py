@@ -41,6 +41,7 @@ class McapWriter:
         self._channels: dict[str, int] = {}
         self._sequence = 0
         self._flushed_at = time.monotonic()
+        self._samples_logged_to_s = 0.0
         for channel_id, (topic, schema) in enumerate(schemas.items(), start=1):
             self._add_channel(channel_id, topic, schema)
 
@@ -61,14 +62,18 @@ class McapWriter:
         """Raw servo samples (RawSample-shaped, oldest first), e.g. what the servo ring gathered since the last call.
 
         Log times keep the samples' robot-time spacing with the newest at now, so
-        they interleave with the events in Foxglove's timeline.
+        they interleave with the events in Foxglove's timeline; a batch is moved
+        later if needed so log times never run backwards (virtual time runs faster
+        than the wall clock).
         """
         samples = [RawSample.model_validate(sample) for sample in batch]  # a malformed ring entry fails here
         if not samples:
             return
-        now_s, newest_t = time.time(), samples[-1].t
+        newest_t = samples[-1].t
+        end_s = max(time.time(), self._samples_logged_to_s + (newest_t - samples[0].t))
         for sample in samples:
-            self._message(SAMPLES_CHANNEL, sample.model_dump_json().encode(), now_s - (newest_t - sample.t))
+            self._message(SAMPLES_CHANNEL, sample.model_dump_json().encode(), end_s - (newest_t - sample.t))
+        self._samples_logged_to_s = end_s
         self.flush_if_due()
 
     def _message(self, topic: str, data: bytes, log_time_s: float) -> None:

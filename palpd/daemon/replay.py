@@ -1,29 +1,39 @@
-"""Replay a session: refit every recorded palpation and re-learn, then compare with the recorded estimate.
+"""Replay a session: re-segment, refit every recorded palpation and re-learn, then compare estimates.
 
-The palpation traces come from the journal (fsynced, complete even after a
-crash) or, without one, from the MCAP recordings; the estimate to reproduce is
-the last one recorded in the MCAP files.
+The palpations come from the journal (fsynced, complete even after a crash)
+or, without one, from the MCAP recordings; each is cut again out of the raw
+1 kHz samples when the recording has all its ticks (segmentation, then the
+scan's own fit, then the same learner), else its journaled trace is refitted.
+The estimate to reproduce is the last one recorded in the MCAP files.
 """
 from __future__ import annotations
 
+import bisect
+import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
-from palpd.daemon.learning import make_estimator
+from palpd.bus.messages import SAMPLES_CHANNEL
+from palpd.control.segment import Segmenter
+from palpd.daemon.jobs import resolved_scan
+from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.mcap import read_messages
-from palpd.daemon.session import JOURNAL, read_journal
+from palpd.daemon.session import JOURNAL, META, read_journal
 from palpd.errors import PalpdError
-from palpd.stiffness import FitRejected, fit_linear
+from palpd.stiffness import FitRejected
+from palpd.stiffness.palpation import fit_palpation
 
 TOLERANCE = 1e-6
 
 
-def recorded(session_dir: Path) -> tuple[list[dict], dict | None]:
-    """(palpations in order, last recorded estimate) of a session directory."""
+def recorded(session_dir: Path, settings) -> tuple[list[dict], dict | None]:
+    """(palpations in order, last recorded estimate) of a session directory; each palpation re-segmented
+    from the raw samples when the recording has them."""
     recordings = sorted(session_dir.glob("recording-*.mcap"), key=lambda p: int(p.stem.split("-")[1]))
     if not recordings and not (session_dir / JOURNAL).exists():
         raise PalpdError(f"{session_dir}: not a session directory (no journal, no recording)")
-    palpations, estimate = {}, None
+    palpations, estimate, samples = {}, None, {}
     for path in recordings:
         try:
             messages = read_messages(path)
@@ -34,26 +44,70 @@ def recorded(session_dir: Path) -> tuple[list[dict], dict | None]:
                 palpations[payload["index"]] = payload
             elif topic == "estimate":
                 estimate = payload
+            elif topic == SAMPLES_CHANNEL:
+                samples.setdefault(path.name, []).append((payload["t"], payload["tip_mm"], payload["normal_force_n"]))
     journal = read_journal(session_dir / JOURNAL)
     traces = journal if len(journal) >= len(palpations) else [palpations[i] for i in sorted(palpations)]
-    return traces, estimate
+    return [resegmented(trace, samples.get(trace.get("recording"), []), settings) for trace in traces], estimate
+
+
+def resegmented(trace: dict, samples: list, settings) -> dict:
+    """The palpation cut again out of the raw samples by a fresh segmenter, as its task cut it live; the
+    journaled trace as it is when the recording has no samples for it (older sessions, a crash's lost second)."""
+    t0, t1 = trace.get("t_first_tick_s"), trace.get("t_end_s")
+    if t0 is None or not t1 or not samples:
+        return trace
+    times = [t for t, _, _ in samples]
+    start, stop = bisect.bisect_left(times, t0), bisect.bisect_right(times, t1)
+    if start == len(times) or times[start] != t0 or times[stop - 1] != t1:
+        return trace  # not every tick of it was recorded
+    segmenter = Segmenter(settings.palpation.contact_on_n, settings.palpation.contact_off_n)
+    for t, tip, force in samples[start:stop]:
+        segment = segmenter.push(t, tip, force)
+        if segment is not None:
+            return trace | {"xy_mm": list(segment.xy_mm), "depth_mm": segment.depth_mm, "force_n": segment.force_n,
+                            "unload_depth_mm": segment.unload_depth_mm, "unload_force_n": segment.unload_force_n,
+                            "segmented": True}
+    return trace | {"depth_mm": [], "force_n": [], "unload_depth_mm": [], "unload_force_n": [], "segmented": True}
 
 
 def replay(session_dir: Path, settings) -> dict:
-    traces, recorded_estimate = recorded(session_dir)
-    estimator = make_estimator(settings)
+    scan = session_scan(session_dir, settings)
+    settings = scan_settings(settings, scan)
+    traces, recorded_estimate = recorded(session_dir, settings)
+    estimator = make_estimator(settings, scan, scan["size_mm"])
     worst_k = 0.0
     for trace in traces:
-        try:
-            k = fit_linear(trace["depth_mm"], trace["force_n"]).stiffness_n_per_mm
-        except FitRejected:
-            k = None
+        k, sd = refit(trace, settings)
         if trace.get("stiffness_n_per_mm") is not None and k is not None:
             worst_k = max(worst_k, abs(k - trace["stiffness_n_per_mm"]))
-        estimator.observe(trace["xy_mm"], k)
+        estimator.observe(trace["xy_mm"], k, sd)
     estimate = estimator.estimate()
-    return {"palpations": len(traces), "max_stiffness_difference_n_per_mm": worst_k, "estimate": estimate,
+    return {"palpations": len(traces), "segmented": sum(bool(t.get("segmented")) for t in traces), "max_stiffness_difference_n_per_mm": worst_k, "estimate": estimate,
             "recorded": recorded_estimate, "reproduced": same_lumps(estimate, recorded_estimate)}
+
+
+def session_scan(session_dir: Path, settings) -> dict:
+    """The scan's args as the daemon kept them (its region above all); the defaults without session.json."""
+    try:
+        scan = json.loads((session_dir / META).read_text())["scan"]
+    except (OSError, ValueError, KeyError):
+        scan = {}
+    defaults = {"strategy": "raster", "max_palpations": None, "seed": 0, "center_mm": (0.0, 0.0), "size_mm": None,
+                "depth_mm": None, "speed_mm_s": None}
+    return resolved_scan(defaults | scan, settings.tissue.size_mm, settings.learner.max_palpations)
+
+
+def refit(trace: dict, settings) -> tuple[float | None, float]:
+    """The palpation's stiffness and its standard error, fitted as the scan fitted it."""
+    record = SimpleNamespace(depth_mm=trace["depth_mm"], force_n=trace["force_n"],
+                             unload_depth_mm=trace.get("unload_depth_mm", []),
+                             unload_force_n=trace.get("unload_force_n", []))
+    try:
+        fit = fit_palpation(record, settings.stiffness, settings.servo.rate_hz)
+    except FitRejected:
+        return None, 0.0
+    return fit.stiffness_n_per_mm, fit.stiffness_se_n_per_mm
 
 
 def same_lumps(ours: dict, theirs: dict | None) -> bool:

@@ -17,9 +17,11 @@ from palpd.bus.messages import recording_schemas
 from palpd.bus.publisher import EventPublisher
 from palpd.bus.security import Security
 from palpd.daemon import handlers
-from palpd.daemon.learning import make_estimator
+from palpd.daemon.jobs import resolved_scan
+from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.mcap import McapWriter, seal
 from palpd.daemon.notify import Notifier
+from palpd.daemon.samples import SampleDrain
 from palpd.daemon.session import ensure_writable, find_unfinished, state_directory
 from palpd.daemon.worker import WORKER_ENDPOINT, ScanWorker
 from palpd.errors import PalpdError
@@ -29,8 +31,9 @@ QUIT_GRACE_S = 5.0
 
 
 class Supervisor:
-    def __init__(self, settings, bench) -> None:
+    def __init__(self, settings, bench, reopen_bench=None) -> None:
         self.settings, self.bench = settings, bench
+        self.reopen_bench = reopen_bench  # a new servo process after servo_lost (reset)
         self.security = Security.from_settings(settings.bus)
         self.sessions_dir = ensure_writable(state_directory(settings.daemon.state_dir))
         self.notifier = Notifier()
@@ -38,7 +41,8 @@ class Supervisor:
         self.state, self.message = "configure", ""
         self.session, self.job, self.recording = None, None, None
         self.probe_session = None  # single palpations (probe.at) of this run, journaled like a scan's
-        self.estimator = make_estimator(settings)
+        self.estimator = make_estimator(settings, None, bench.tissue_size_mm)
+        self.samples = SampleDrain()
         self.last_estimate = None
         self._terminating = False
         self._last_watchdog = 0.0
@@ -69,7 +73,10 @@ class Supervisor:
         self.session = session
         for recording in session.path.glob("recording-*.mcap"):
             seal(recording)  # the crashed run's file, ended properly so Foxglove opens it
-        for entry in session.entries:
+        scan = session.meta["scan"] = resolved_scan(session.meta["scan"], self.bench.tissue_size_mm,
+                                                    self.settings.learner.max_palpations)
+        self.estimator = make_estimator(scan_settings(self.settings, scan), scan, self.bench.tissue_size_mm)
+        for entry in session.entries:  # the learner relearns the journal in order: where it left off
             self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0)
         self.publish("estimate", self.bench.clock.now(), **self.estimator.estimate())
 
@@ -106,8 +113,18 @@ class Supervisor:
                 if command is not None:
                     handlers.dispatch(self, command)
         if self.recording is not None:
+            self.samples.drain(self.bench.servo, self.recording)
             self.recording.flush_if_due()
+        if self.job is None and self.state == "ready":
+            self._check_idle_servo()
         self._ping_watchdog()
+
+    def _check_idle_servo(self) -> None:
+        """A fault the servo process latched between jobs (bridge e-stop, lost child) is published at once."""
+        fault = self.bench.servo.check_idle()
+        if fault is not None:
+            self.publish("fault", self.bench.clock.now(), code=fault.code, message=fault.message)
+            self.set_state("fault", fault.code)
 
     def _drain_worker(self) -> None:
         while self.inbox.poll(0):
@@ -142,6 +159,7 @@ class Supervisor:
             self._wait_for_job(poller, QUIT_GRACE_S)
         self.worker.quit()
         self.worker.join(QUIT_GRACE_S)
+        self.samples.drain(self.bench.servo, self.recording)  # the last ticks, before the ring goes away
         self.bench.servo.close()  # the servo process quits with its motors off
         self._drain_worker()
         self.set_state("stopped", "terminated")
@@ -174,6 +192,7 @@ class Supervisor:
             "state": self.state, "message": self.message, "palpations": len(session.entries) if session else 0,
             "session": session.name if session else "", "expected_total": total,
             "resumable": bool(session and self.job is None and session.meta["status"] == "unfinished"),
+            "samples_lost": self.samples.lost,
         }
 
     def status_line(self) -> str:
@@ -181,9 +200,15 @@ class Supervisor:
         return f"{fields['state']}: {fields['palpations']} palpations" + (f", {self.message}" if self.message else "")
 
     def open_recording(self, session) -> None:
-        self.recording = McapWriter(session.next_recording(), recording_schemas())
+        path = session.next_recording()
+        self.recording = McapWriter(path, recording_schemas())
+        if self.job is not None:
+            self.job.recording = path.name
+        self.samples.start(self.bench.servo)
 
     def close_recording(self) -> None:
         if self.recording is not None:
+            self.samples.drain(self.bench.servo, self.recording)
+            self.samples.stop()
             self.recording.close()
             self.recording = None
