@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from drivers.errors import DriverError
@@ -31,13 +32,18 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        return args.handler(args)
+        status = args.handler(args)
+        sys.stdout.flush()  # inside the try: a reader that left shows up here, not as an exit-time traceback
+        return status
     except (PalpdError, DriverError) as exc:
         print(f"palpd: {exc}", file=sys.stderr)
         return getattr(exc, "exit_code", EXIT_FAILURE)
     except KeyboardInterrupt:
         print("palpd: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # `palpd ... | head`: the reader left; say nothing, as other CLI tools do
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":
