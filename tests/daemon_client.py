@@ -16,11 +16,16 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "config" / "scenes"
 
 
+# Above Linux's ephemeral range (32768-60999): a port released here is not taken by some process's
+# outgoing connection before the daemon binds it.
+PORT_RANGE = (61000, 65535)
+
+
 def free_loopback_ports(context: zmq.Context, count: int) -> list[int]:
     """Distinct free ports: all probe sockets stay bound until every port is chosen."""
     probes = [context.socket(zmq.PUB) for _ in range(count)]
     try:
-        return [probe.bind_to_random_port("tcp://127.0.0.1") for probe in probes]
+        return [probe.bind_to_random_port("tcp://127.0.0.1", *PORT_RANGE) for probe in probes]
     finally:
         for probe in probes:
             probe.close(linger=0)

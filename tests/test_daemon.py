@@ -5,6 +5,7 @@ import subprocess
 import sys
 
 import pytest
+import zmq
 
 from conftest import assert_one_line_error
 from daemon_client import Daemon, receive
@@ -144,6 +145,18 @@ def test_non_loopback_bind_without_keys_is_refused(tmp_path, run_cli):
     result = run_cli("serve", env=env)
     assert_one_line_error(result, "tcp://0.0.0.0:5999", "CURVE")
     assert result.returncode == 78
+
+
+@pytest.mark.parametrize("taken", ["events", "commands"])
+def test_a_taken_port_ends_the_daemon_with_one_line_instead_of_a_hang(tmp_path, run_cli, taken):
+    daemon = Daemon(tmp_path)
+    squatter = daemon.socket(zmq.PUB)
+    endpoint = f"tcp://127.0.0.1:{squatter.bind_to_random_port('tcp://127.0.0.1')}"
+    try:
+        result = run_cli("serve", env=daemon.env | {f"PALPD_BUS__{taken.upper()}": endpoint})
+    finally:
+        daemon.close()
+    assert_one_line_error(result, "cannot bind", endpoint)
 
 
 def test_palpctl_status_scan_estimate_and_plot(daemon, run_cli, tmp_path):

@@ -8,6 +8,8 @@ import sys
 import pytest
 import zmq
 
+from daemon_client import PORT_RANGE
+
 from conftest import ROOT
 from palpd.bus.messages import Estimate, Stiffness
 
@@ -23,7 +25,7 @@ def ctx():
 
 def free_port(ctx) -> int:
     probe = ctx.socket(zmq.PUB)
-    port = probe.bind_to_random_port("tcp://127.0.0.1")
+    port = probe.bind_to_random_port("tcp://127.0.0.1", *PORT_RANGE)
     probe.close(linger=0)
     return port
 

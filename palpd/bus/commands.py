@@ -14,6 +14,7 @@ from pydantic import BaseModel, ValidationError
 
 from drivers.errors import describe_validation_error
 from palpd.bus.messages import COMMAND_ARGS, READ_ONLY_COMMANDS, Request
+from palpd.bus.publisher import bind_or_close
 from palpd.bus.security import LOCAL, OPERATOR
 
 MAX_MESSAGE_BYTES = 1 << 16  # a bigger message disconnects its sender instead of eating memory
@@ -42,7 +43,7 @@ class CommandServer:
         self.socket.setsockopt(zmq.LINGER, 0)
         self.socket.setsockopt(zmq.MAXMSGSIZE, MAX_MESSAGE_BYTES)
         security.secure(self.socket)
-        self.socket.bind(endpoint)
+        bind_or_close(self.socket, endpoint)
 
     def receive(self) -> Command | None:
         """One request parsed and checked; a bad one is answered here and None returned."""

@@ -6,6 +6,16 @@ import zmq
 from palpd.bus.messages import EVENT_MODELS, Event
 
 
+def bind_or_close(socket: zmq.Socket, endpoint: str) -> None:
+    """Bind, or close the socket before the error propagates: a socket left open blocks the
+    context's termination, and a daemon that cannot bind must exit, not hang."""
+    try:
+        socket.bind(endpoint)
+    except zmq.ZMQError:
+        socket.close(linger=0)
+        raise
+
+
 class EventPublisher:
     """Sends [topic, json] with a per-topic seq; validates every payload against its model."""
 
@@ -14,7 +24,7 @@ class EventPublisher:
         self.socket.setsockopt(zmq.LINGER, 0)
         self.socket.setsockopt(zmq.SNDHWM, high_water_mark)
         security.secure(self.socket)
-        self.socket.bind(endpoint)
+        bind_or_close(self.socket, endpoint)
         self._seq = {topic: 0 for topic in EVENT_MODELS}
 
     def publish(self, topic: str, t: float, **fields) -> Event:

@@ -85,7 +85,7 @@ class Supervisor:
             if hasattr(self, name):
                 getattr(self, name).close()
         self.security.stop()
-        self.context.term()
+        self.context.destroy(linger=0)  # closes whatever socket is still open: shutting down never waits
         self.notifier.close()
 
     # The loop --------------------------------------------------------------------------------------
