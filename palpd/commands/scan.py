@@ -3,14 +3,13 @@ from __future__ import annotations
 
 import sys
 
-from palpd.config import load_settings
 from palpd.errors import EXIT_FAILURE, UsageError
-from palpd.files import write_json
 
 
 def add_parser(subparsers):
     scan = subparsers.add_parser("scan", help="palpate a scene end to end and estimate its lumps")
-    scan.add_argument("--scene", required=True, help="scene file (TOML)")
+    scan.add_argument("--scene", required=True, metavar="FILE|NAME",
+                      help="scene file (TOML) or the name of a shipped scene (`palpd scenes`)")
     scan.add_argument("--strategy", choices=["active", "raster", "random"], help="where to palpate (default raster)")
     scan.add_argument("--max-palpations", type=int, metavar="N")
     scan.add_argument("--confidence", type=float, metavar="P", help="stopping confidence (active strategy)")
@@ -28,22 +27,14 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    # Heavy imports here, not at the top: `palpd --help` and argument errors stay fast.
-    from drivers.sim.scene import load_scene, truth_lumps
+    settings, scene = _checked(args)
+    # Heavy imports (scipy.stats, scikit-learn, matplotlib) only once arguments, config and scene are known good.
+    from drivers.sim.scene import truth_lumps
     from palpd import metrics
     from palpd.control.remote import open_servo_bench
+    from palpd.files import write_json
     from palpd.scan import plan, run_scan
 
-    if args.max_palpations is not None and args.max_palpations < 1:
-        raise UsageError("--max-palpations must be at least 1")
-    if args.train is not None and args.strategy != "active":
-        raise UsageError("--train teaches the active strategy's threshold; use it with --strategy active")
-    settings = load_settings(args.config).updated(
-        scan={"strategy": args.strategy, "max_palpations": args.max_palpations, "seed": args.seed},
-        palpation={"depth_mm": args.depth_mm, "speed_mm_s": args.speed_mm_s},
-        learner={"confidence": args.confidence, "training_set": args.train},
-    )
-    scene = load_scene(args.scene)
     s = settings.scan
     # The active budget has its own default (learner.max_palpations): it stops on its own well before a raster's.
     budget = args.max_palpations or (settings.learner.max_palpations if s.strategy == "active" else s.max_palpations)
@@ -73,6 +64,23 @@ def run(args) -> int:
         print(f"palpd: scan stopped by a safety fault ({fault['code']}): {fault['message']}", file=sys.stderr)
         return EXIT_FAILURE
     return 0
+
+
+def _checked(args):
+    """Settings and scene, validated before anything heavy is imported (a mistake costs ~0.2 s, not 1.3 s)."""
+    from palpd.config import load_settings
+    from palpd.shipped import load_scene_named
+
+    if args.max_palpations is not None and args.max_palpations < 1:
+        raise UsageError("--max-palpations must be at least 1")
+    if args.train is not None and args.strategy != "active":
+        raise UsageError("--train teaches the active strategy's threshold; use it with --strategy active")
+    settings = load_settings(args.config).updated(
+        scan={"strategy": args.strategy, "max_palpations": args.max_palpations, "seed": args.seed},
+        palpation={"depth_mm": args.depth_mm, "speed_mm_s": args.speed_mm_s},
+        learner={"confidence": args.confidence, "training_set": args.train},
+    )
+    return settings, load_scene_named(args.scene)
 
 
 def _progress_printer(args):

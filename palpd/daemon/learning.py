@@ -11,6 +11,23 @@ from __future__ import annotations
 from palpd.learner.planner import make_learner
 
 DEFAULT_MAX_PALPATIONS = 81  # raster and random, when scan.start does not say
+MAP_CELLS_PER_SIDE = 61  # the posterior map sent to clients: 61 x 61 keeps a reply near 100 kB
+
+
+def posterior_grid(learner, max_cells_per_side: int = MAP_CELLS_PER_SIDE) -> dict | None:
+    """A learner's posterior (P(lump), mean and sd of the stiffness) on an evenly thinned grid, learner frame,
+    as plain lists (PosteriorMap's fields); None before its first stiffness point."""
+    p_lump = learner.p_lump()
+    if p_lump is None:
+        return None
+    step = max(1, -(-len(learner.xs) // max_cells_per_side))
+    rows, cols = slice(None, None, step), slice(None, None, step)
+    shape = (len(learner.ys), len(learner.xs))
+    mean, sd = learner.gp.mean.reshape(shape), learner.gp.std().reshape(shape)
+    return {"xs_mm": [round(float(x), 3) for x in learner.xs[cols]],
+            "ys_mm": [round(float(y), 3) for y in learner.ys[rows]],
+            "p_lump": p_lump[rows, cols].round(4).tolist(), "stiffness_n_per_mm": mean[rows, cols].round(5).tolist(),
+            "stiffness_sd_n_per_mm": sd[rows, cols].round(5).tolist(), "confidence": learner.settings.confidence}
 
 
 def scan_settings(settings, scan: dict):
@@ -49,6 +66,16 @@ class LearnerEstimator:
         """Fields of the bus `estimate` event."""
         return {"points": len(self.k_n_per_mm), "lumps": [self._shifted(lump.as_dict()) for lump in self.learner.lumps()],
                 "next_probe_mm": self.next_probe(), "ambiguous_area_mm2": self.learner.ambiguous_area_mm2()}
+
+    def posterior_map(self, max_cells_per_side: int = MAP_CELLS_PER_SIDE) -> dict | None:
+        """The learner's posterior on (at most) a max × max subgrid, tissue frame: reply.estimate.get's `map`,
+        what the live view and `palpctl plot` draw. None before the first stiffness point."""
+        grid = posterior_grid(self.learner, max_cells_per_side)
+        if grid is None:
+            return None
+        grid["xs_mm"] = [round(x + self.cx, 3) for x in grid["xs_mm"]]
+        grid["ys_mm"] = [round(y + self.cy, 3) for y in grid["ys_mm"]]
+        return grid
 
     def _shifted(self, lump: dict) -> dict:
         x, y = lump["center_mm"]
