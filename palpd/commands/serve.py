@@ -27,16 +27,19 @@ def run(args) -> int:
     from palpd.daemon.logs import setup_logging
 
     settings = load_settings(args.config)
-    log = setup_logging(args.log_level or settings.daemon.log_level).getChild("daemon")
-    log.info("palpd %s starting: config %s", __version__, args.config or "built-in defaults (no --config)")
-    overrides = sorted(name for name in os.environ if name.startswith("PALPD_") and "__" in name)
-    if overrides:
-        log.info("environment overrides: %s", ", ".join(overrides))
     scene, scene_path = _scene(settings, args.scene)
-    log.info("bench: simulated (robot %s, sensor %s), scene %r from %s, %s", settings.robot.url,
-             settings.sensor.backend, scene.name, scene_path,
-             "on the wall clock" if settings.daemon.realtime else "in virtual time")
-    return _serve(settings, scene)
+    log = setup_logging(args.log_level or settings.daemon.log_level).getChild("daemon")
+
+    def announce() -> None:  # once every endpoint is bound: a refusal before that stays one line
+        log.info("palpd %s: config %s", __version__, args.config or "built-in defaults (no --config)")
+        overrides = sorted(name for name in os.environ if name.startswith("PALPD_") and "__" in name)
+        if overrides:
+            log.info("environment overrides: %s", ", ".join(overrides))
+        log.info("bench: simulated (robot %s, sensor %s), scene %r from %s, %s", settings.robot.url,
+                 settings.sensor.backend, scene.name, scene_path,
+                 "on the wall clock" if settings.daemon.realtime else "in virtual time")
+
+    return _serve(settings, scene, announce)
 
 
 def _scene(settings, requested: str | None):
@@ -54,7 +57,7 @@ def _scene(settings, requested: str | None):
         raise ConfigError(f"{'--scene' if requested else 'daemon.scene'}: {exc}") from None
 
 
-def _serve(settings, scene) -> int:
+def _serve(settings, scene, announce) -> int:
     from palpd.control.remote import open_servo_bench
     from palpd.daemon.supervisor import Supervisor
 
@@ -64,7 +67,7 @@ def _serve(settings, scene) -> int:
     bench = reopen_bench()
     try:
         supervisor = Supervisor(settings, bench, reopen_bench)
-        supervisor.open()
+        supervisor.open(announce)
         return supervisor.serve()
     finally:
         bench.servo.close()  # idempotent: a clean shut-down has closed it already

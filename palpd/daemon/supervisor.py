@@ -55,24 +55,13 @@ class Supervisor:
 
     # Start and stop -----------------------------------------------------------------------------
 
-    def open(self) -> None:
-        self.security.start(self.context)
-        try:
-            self.events = EventPublisher(self.context, self.settings.bus.events,
-                                         self.settings.bus.high_water_mark, self.security)
-            self.commands = CommandServer(self.context, self.settings.bus.commands, self.security)
-        except zmq.ZMQError as exc:
-            self.close()
-            raise PalpdError(f"bus: cannot bind: {exc}") from None
-        bus = self.settings.bus
-        curve = "CURVE" if self.security.secret_key is not None else "loopback/ipc only, no CURVE"
-        log.info("events (PUB) on %s, commands (ROUTER) on %s (%s)", bus.events, bus.commands, curve)
-        try:
-            self.viewers = open_viewers(self.settings.daemon, self.bench.tissue_size_mm)
-        except PalpdError:
-            self.close()
-            raise
-        log.info("sessions in %s", self.sessions_dir)
+    def open(self, announce=None) -> None:
+        """Bind every endpoint; then announce() (the start-up log lines: nothing is said before a refusal,
+        which stays one line), then start the worker, recover and go ready."""
+        self._bind()
+        if announce is not None:
+            announce()
+        self._log_endpoints()
         self.inbox = self.context.socket(zmq.PULL)
         self.inbox.bind(WORKER_ENDPOINT)
         self.worker = ScanWorker(self.context, self.bench, self.settings)
@@ -80,6 +69,28 @@ class Supervisor:
         self._recover()
         self.set_state("ready", "recovered an unfinished session" if self.session else "")
         self.notifier.ready(self.status_line())
+
+    def _bind(self) -> None:
+        self.security.start(self.context)
+        try:
+            self.events = EventPublisher(self.context, self.settings.bus.events,
+                                         self.settings.bus.high_water_mark, self.security)
+            self.commands = CommandServer(self.context, self.settings.bus.commands, self.security)
+            self.viewers = open_viewers(self.settings.daemon, self.bench.tissue_size_mm)
+        except zmq.ZMQError as exc:
+            self.close()
+            raise PalpdError(f"bus: cannot bind: {exc}") from None
+        except PalpdError:
+            self.close()
+            raise
+
+    def _log_endpoints(self) -> None:
+        bus = self.settings.bus
+        curve = "CURVE" if self.security.secret_key is not None else "loopback/ipc only, no CURVE"
+        log.info("events (PUB) on %s, commands (ROUTER) on %s (%s)", bus.events, bus.commands, curve)
+        for viewer in self.viewers:
+            log.info("%s on %s", viewer.what, viewer.url)
+        log.info("sessions in %s", self.sessions_dir)
 
     def _recover(self) -> None:
         session = find_unfinished(self.sessions_dir)

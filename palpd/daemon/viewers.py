@@ -4,13 +4,11 @@ Foxglove SDK, a Foxglove WebSocket server (`daemon.foxglove`). Each sees every e
 """
 from __future__ import annotations
 
-import logging
 import time
 
 from palpd.bus.security import is_local_endpoint
 from palpd.errors import ConfigError, PalpdError
 
-log = logging.getLogger("palpd.daemon")
 MAX_FAULTS_SHOWN = 20
 
 
@@ -51,7 +49,7 @@ class LiveView:
         except OSError as exc:
             raise PalpdError(f"daemon.http {address}: cannot listen: {exc.strerror or exc}") from None
         self._session, self._probes, self._faults = None, [], []
-        log.info("live view on %s", self.server.url)
+        self.what, self.url = "live view", self.server.url
 
     def event(self, topic: str, payload: dict) -> None:
         if topic == "status":
@@ -110,7 +108,7 @@ class FoxgloveStream:
             raise PalpdError(f"daemon.foxglove {address}: cannot listen: {exc}") from None
         self.channels = {topic: foxglove.Channel(topic, schema=schema, context=self.context)
                          for topic, schema in recording_schemas().items()}
-        log.info("Foxglove WebSocket on ws://%s:%d", host, self.server.port)
+        self.what, self.url = "Foxglove WebSocket", f"ws://{host}:{self.server.port}"
 
     def event(self, topic: str, payload: dict) -> None:
         self.channels[topic].log(payload, log_time=time.time_ns())
