@@ -9,25 +9,9 @@ points go in and lumps and probes come out shifted by the region's centre.
 from __future__ import annotations
 
 from palpd.learner.planner import make_learner
+from palpd.posterior import MAP_CELLS_PER_SIDE, posterior_grid
 
 DEFAULT_MAX_PALPATIONS = 81  # raster and random, when scan.start does not say
-MAP_CELLS_PER_SIDE = 61  # the posterior map sent to clients: 61 x 61 keeps a reply near 100 kB
-
-
-def posterior_grid(learner, max_cells_per_side: int = MAP_CELLS_PER_SIDE) -> dict | None:
-    """A learner's posterior (P(lump), mean and sd of the stiffness) on an evenly thinned grid, learner frame,
-    as plain lists (PosteriorMap's fields); None before its first stiffness point."""
-    p_lump = learner.p_lump()
-    if p_lump is None:
-        return None
-    step = max(1, -(-len(learner.xs) // max_cells_per_side))
-    rows, cols = slice(None, None, step), slice(None, None, step)
-    shape = (len(learner.ys), len(learner.xs))
-    mean, sd = learner.gp.mean.reshape(shape), learner.gp.std().reshape(shape)
-    return {"xs_mm": [round(float(x), 3) for x in learner.xs[cols]],
-            "ys_mm": [round(float(y), 3) for y in learner.ys[rows]],
-            "p_lump": p_lump[rows, cols].round(4).tolist(), "stiffness_n_per_mm": mean[rows, cols].round(5).tolist(),
-            "stiffness_sd_n_per_mm": sd[rows, cols].round(5).tolist(), "confidence": learner.settings.confidence}
 
 
 def scan_settings(settings, scan: dict):
