@@ -20,7 +20,7 @@ def scan_settings(config=None, strategy=None, max_palpations=None, seed=None, de
     if max_palpations is not None and max_palpations < 1:
         raise UsageError("max_palpations must be at least 1")
     if train is not None and strategy != "active":
-        raise UsageError("a training set teaches the active strategy's threshold; use it with strategy active")
+        raise UsageError("--train teaches the active strategy's threshold; use it with --strategy active")
     return load_settings(config).updated(
         scan={"strategy": strategy, "max_palpations": max_palpations, "seed": seed},
         palpation={"depth_mm": depth_mm, "speed_mm_s": speed_mm_s},

@@ -102,7 +102,7 @@ def estop(sup, command) -> None:
     sup.bench.servo.request_estop()  # the servo process trips on its next tick; any later motion trips at once
     if sup.job is None:
         sup.set_state("fault", "estop")
-        sup.publish("fault", sup.bench.clock.now(), code="estop", message="emergency stop requested")
+        sup.publish("fault", sup.now(), code="estop", message="emergency stop requested")
     sup.commands.reply(command, estop=True)
 
 
@@ -156,7 +156,7 @@ def job_ended(sup, fault: dict | None) -> None:
         log.info("session %s %s after %d palpations", sup.session.name, sup.session.meta["status"],
                  len(sup.session.entries))
     if fault is not None:
-        sup.publish("fault", sup.bench.clock.now(), code=fault["code"], message=fault["message"])
+        sup.publish("fault", sup.now(), code=fault["code"], message=fault["message"])
         sup.set_state("fault", fault["code"])
     else:
         sup.set_state("ready", "scan finished" if getattr(job, "finished", False) else

@@ -52,6 +52,7 @@ class Supervisor:
         self._terminating = False
         self._last_watchdog = 0.0
         self._last_status_s = 0.0
+        self._now_s = 0.0
 
     # Start and stop -----------------------------------------------------------------------------
 
@@ -107,7 +108,7 @@ class Supervisor:
         self.estimator = make_estimator(scan_settings(self.settings, scan), scan, self.bench.tissue_size_mm)
         for entry in session.entries:  # the learner relearns the journal in order: where it left off
             self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0)
-        self.publish("estimate", self.bench.clock.now(), **self.estimator.estimate())
+        self.publish("estimate", self.now(), **self.estimator.estimate())
         self.show_map(self.estimator.posterior_map())
         for viewer in self.viewers:
             viewer.probes(handlers.probe_records(session.entries), session.name)
@@ -153,14 +154,14 @@ class Supervisor:
         if self.job is None and self.state == "ready":
             self._check_idle_servo()
         if time.monotonic() - self._last_status_s >= self.settings.daemon.status_interval_s:
-            self.publish("status", self.bench.clock.now(), **self.status_fields())  # the heartbeat
+            self.publish("status", self.now(), **self.status_fields())  # the heartbeat
         self._ping_watchdog()
 
     def _check_idle_servo(self) -> None:
         """A fault the servo process latched between jobs (bridge e-stop, lost child) is published at once."""
         fault = self.bench.servo.check_idle()
         if fault is not None:
-            self.publish("fault", self.bench.clock.now(), code=fault.code, message=fault.message)
+            self.publish("fault", self.now(), code=fault.code, message=fault.message)
             self.set_state("fault", fault.code)
 
     def _drain_worker(self) -> None:
@@ -236,12 +237,21 @@ class Supervisor:
         if (state, message) != (self.state, self.message):
             log.info("state %s -> %s%s", self.state, state, f" ({message})" if message else "")
         self.state, self.message = state, message
-        self.publish("status", self.bench.clock.now(), **self.status_fields())
+        self.publish("status", self.now(), **self.status_fields())
         self.notifier.status(self.status_line())
+
+    def now(self) -> float:
+        """Robot time; while a lost servo process's shared memory is being closed (reset starts a new one on
+        the worker thread), the last time it showed: a status request or heartbeat must never fail on it."""
+        try:
+            self._now_s = self.bench.clock.now()
+        except (TypeError, ValueError, AttributeError):
+            pass
+        return self._now_s
 
     def status_event(self) -> dict:
         """The current status as a `status` event carries it (seq: the latest status event's)."""
-        return {"v": SCHEMA_VERSION, "seq": self.events.last_seq("status"), "t": self.bench.clock.now(), **self.status_fields()}
+        return {"v": SCHEMA_VERSION, "seq": self.events.last_seq("status"), "t": self.now(), **self.status_fields()}
 
     def status_fields(self) -> dict:
         session = self.session
