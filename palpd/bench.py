@@ -32,7 +32,34 @@ def open_bench(settings, scene, seed: int = 0, realtime: bool = False) -> Bench:
     """The simulated bench in this process for sim://, otherwise the hardware (or a `palpd simulate`) at the URLs."""
     if settings.robot.url.startswith("sim"):
         return open_simulated_bench(settings, scene, seed, realtime)
-    return open_hardware_bench(settings.updated(tissue=_placement(scene), sensor=_mount(scene)), scene)
+    return open_hardware_bench(placed_settings(settings, scene), scene)
+
+
+def placed_settings(settings, scene):
+    """The settings a bench runs with: a scene, when given, says where the tissue is and how the sensor is
+    mounted (on hardware it says nothing else); without one, the tissue and sensor sections do."""
+    if scene is None:
+        if settings.robot.url.startswith("sim"):
+            raise ConfigError("the simulated bench (robot.url sim://) needs a scene")
+        return settings
+    return settings.updated(tissue=_placement(scene), sensor=_mount(scene))
+
+
+def check_reach(settings, scene=None) -> None:
+    """Refuse, before any process or device is opened, a tissue placement the arm cannot reach (ConfigError:
+    one line naming where the placement comes from)."""
+    placed = placed_settings(settings, scene)
+    frame = TissueFrame(tuple(v / 1000.0 for v in placed.tissue.origin_mm))
+    source = "" if scene is None else f"scene {scene.name!r} (placement.origin_mm, tissue.size_mm): "
+    try:
+        model.inverse(frame.to_robot((0.0, 0.0, 0.0)))
+    except model.UnreachableError as exc:
+        raise ConfigError(f"{source}tissue.origin_mm {list(placed.tissue.origin_mm)}: the tissue's centre is out "
+                          f"of the arm's reach ({exc})") from None
+    try:
+        refuse_unsafe_configuration(placed, frame)
+    except ConfigError as exc:
+        raise ConfigError(f"{source}{exc}") from None
 
 
 def open_hardware_bench(settings, scene=None) -> Bench:
@@ -62,18 +89,8 @@ def _placement(scene) -> dict:
     return {"origin_mm": scene.placement.origin_mm, "size_mm": scene.tissue.size_mm}
 
 
-def simulated_settings(settings, scene):
-    """Settings as they must be for a simulated bench: the scene says where the tissue is."""
-    if not settings.robot.url.startswith("sim"):
-        raise ConfigError(f"robot.url is {settings.robot.url!r}, but a scene needs the simulated robot (sim://)")
-    return settings.updated(
-        tissue=_placement(scene),
-        sensor=_mount(scene),
-    )
-
-
 def open_simulated_bench(settings, scene, seed: int = 0, realtime: bool = False) -> Bench:
-    settings = simulated_settings(settings, scene)
+    settings = placed_settings(settings, scene)
     clock = RealClock() if realtime else VirtualClock()
     world = drivers.load_backend("drivers.sim.world", "SimWorld")(scene, clock, seed=seed)
     # The robot talks the bridge protocol to a simulated bridge, the sensor goes through the DAQ layer.

@@ -19,6 +19,8 @@ FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 class SceneError(DriverInitializationError):
     """A scene file is missing, unreadable or invalid; the message is one line naming the file."""
 
+    exit_code = 78  # sysexits EX_CONFIG, as for a bad config file: a bad scene is bad configuration
+
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)

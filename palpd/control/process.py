@@ -50,6 +50,9 @@ def _open(conn, ring: SampleRing, settings, scene, seed, realtime):
     except (PalpdError, DriverError) as exc:
         conn.send(("error", exc, None))
         return None
+    except Exception as exc:  # anything else would only show as "servo process exited": say what it was
+        conn.send(("error", PalpdError(f"cannot open the bench: {type(exc).__name__}: {exc}"), None))
+        return None
     notes = []
     if realtime:  # a virtual-time loop runs flat out: it must not do so at real-time priority
         from palpd.control.realtime import prepare_realtime

@@ -12,7 +12,7 @@ import multiprocessing
 import threading
 import time
 
-from palpd.bench import Bench
+from palpd.bench import Bench, check_reach
 from palpd.control.process import servo_main
 from palpd.control.ring import FLAG_FAULT, SampleRing
 from palpd.control.safety import Fault
@@ -30,6 +30,8 @@ class ServoProcessError(PalpdError):
 
 def open_servo_bench(settings, scene, seed: int = 0, realtime: bool = False) -> Bench:
     """Start the servo process on the bench open_bench would open here; returns the parent's view of it."""
+    realtime = realtime or not settings.robot.url.startswith("sim")  # hardware runs on the wall clock, always
+    check_reach(settings, scene)  # here, in one line: a child that cannot place the tissue could only die
     context = multiprocessing.get_context("spawn")  # never fork a process that holds ZeroMQ threads
     ring = SampleRing.create()
     ours, theirs = context.Pipe()
