@@ -147,8 +147,8 @@ class Client:
             if left_s is not None and left_s <= 0:
                 raise TimeoutError(f"the scan did not end within {timeout_s:g} s")
             if statuses.poll(int(1000 * min(1.0, left_s if left_s is not None else 1.0))):
-                statuses.recv_multipart()  # any status event may be the end: ask for the current one
-                current = self.status()
+                statuses.recv_multipart()  # any status event may be the end
+            current = self.status()  # asked every second even when no event came (events on another endpoint)
         return current
 
     def stop_scan(self) -> Reply:

@@ -1,13 +1,12 @@
 """palpd simulate as its own process, and palpd scan against it over socket:// and Net F/T."""
 import json
 import os
-import subprocess
-import sys
 import time
 
 import pytest
 
 from conftest import SCENES, assert_one_line_error
+from remote_bench import bench_config, serve_simulator
 
 
 @pytest.fixture
@@ -16,35 +15,8 @@ def simulator(tmp_path):
     yield from serve_simulator(tmp_path, "--bridge", "tcp://127.0.0.1:0", "--netft", "127.0.0.1:0")
 
 
-def serve_simulator(cwd, *options):
-    """Start `palpd simulate`, yield {kind: url} once it says ready, terminate it afterwards."""
-    process = subprocess.Popen(
-        [sys.executable, "-m", "palpd", "simulate", "--scene", str(SCENES / "paper.toml"), *options],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd)
-    endpoints = {}
-    try:
-        for line in process.stdout:
-            if line.strip() == "ready":
-                break
-            kind, url = line.split()
-            endpoints[kind] = url
-        yield endpoints
-    finally:
-        process.terminate()
-        process.wait(5)
-
-
 def test_scan_runs_against_a_separately_started_simulator(simulator, tmp_path, run_cli):
-    # Real time on a shared CI machine without real-time scheduling: generous transport timeouts, and two
-    # safety settings for a loaded host: it deschedules the servo for tens of ms (on a bench a loop stall),
-    # and meanwhile the separately running simulator moves the arm open-loop on the last current, a real
-    # overshoot (500+ mm/s seen at load 5 on 2 cores). The encoder check keeps its default: it measures over
-    # the real time between samples.
-    # What is under test here is the wire path, not the timing (bench loop measures that).
-    (tmp_path / "remote.toml").write_text(
-        f'[robot]\nurl = "{simulator["bridge"]}"\ntimeout_s = 0.2\n'
-        f'[sensor]\nbackend = "{simulator["netft"]}"\ntimeout_s = 0.5\nstale_after_s = 0.1\n'
-        '[safety]\nmax_tick_gap_s = 0.5\nmax_tip_speed_mm_s = 1500.0\n')
+    bench_config(tmp_path / "remote.toml", simulator)
     assert simulator["bridge"].startswith("socket://127.0.0.1:")
     result = run_cli("scan", "--scene", SCENES / "paper.toml", "--config", "remote.toml",
                      "--max-palpations", "1", "--report", "r.json")

@@ -1,0 +1,94 @@
+"""`palpd serve` next to a bench it reaches over the wire: a separately started `palpd simulate` (Phantom bridge
+over TCP, Nano17 over Net F/T), configured by nothing but the two URLs, driven by palpctl; SIGTERM, kill -9 and
+resume. The simulator keeps running between daemons, as the robot does between restarts of its service."""
+import json
+import signal
+
+import pytest
+
+from conftest import assert_one_line_error
+from daemon_client import Daemon
+from remote_bench import bench_config, serve_simulator
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory):
+    """The simulated bench as its own process, and a config that names only its URLs."""
+    where = tmp_path_factory.mktemp("remote-bench")
+    for endpoints in serve_simulator(where, "--bridge", "tcp://127.0.0.1:0", "--netft", "127.0.0.1:0"):
+        yield bench_config(where / "bench.toml", endpoints)
+
+
+def daemon_on(bench, tmp_path) -> Daemon:
+    """`palpd serve --config bench.toml`: no scene (the config's [tissue] places the tissue)."""
+    return Daemon(tmp_path, env={"PALPD_DAEMON__SCENE": ""}, args=("--config", bench)).start()
+
+
+def palpctl(daemon, run_cli, *args):
+    result = run_cli("--endpoint", daemon.commands, "--events", daemon.events, "--timeout", "10", *args,
+                     module="palpd.palpctl")
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout) if result.stdout.startswith("{") else result.stdout
+
+
+def test_serve_on_the_remote_bench_scans_with_palpctl_and_estimates(bench, tmp_path, run_cli):
+    daemon = daemon_on(bench, tmp_path)
+    try:
+        daemon.wait_for(lambda s: s["state"] == "ready", what="ready")
+        assert palpctl(daemon, run_cli, "status")["state"] == "ready"
+        palpctl(daemon, run_cli, "scan", "start", "--strategy", "raster", "--max-palpations", "3", "--wait")
+        status = palpctl(daemon, run_cli, "status")
+        assert status["state"] == "ready" and status["palpations"] == 1, status  # the largest square grid <= 3
+        estimate = palpctl(daemon, run_cli, "estimate")
+        (probe,) = estimate["probes"]
+        assert probe["xy_mm"] == pytest.approx([0.0, 0.0], abs=0.5)
+        assert 0.4 < probe["stiffness_n_per_mm"] < 0.9  # the paper scene's lump, felt through the wire
+        assert estimate["estimate"]["points"] == 1 and estimate["estimate"]["done"]
+        daemon.signal(signal.SIGTERM)
+        assert daemon.wait() == 0
+        log = daemon.process.stderr.read()
+        assert "bench: robot socket://127.0.0.1:" in log and "force sensor netft://127.0.0.1:" in log, log
+    finally:
+        daemon.close()
+
+
+def test_sigterm_and_kill_9_mid_scan_on_the_remote_bench_then_resume_to_the_end(bench, tmp_path, run_cli):
+    first = daemon_on(bench, tmp_path)
+    try:
+        first.wait_for(lambda s: s["state"] == "ready", what="ready")
+        palpctl(first, run_cli, "scan", "start", "--strategy", "raster", "--max-palpations", "4")
+        first.wait_for(lambda s: s["palpations"] >= 1, timeout_s=60, what="a palpation")
+        first.signal(signal.SIGKILL)  # the servo process dies with it: the bridge watchdog cuts the current
+        first.wait()
+    finally:
+        first.close()
+    second = daemon_on(bench, tmp_path)
+    try:
+        status = second.wait_for(lambda s: s["state"] == "ready", what="ready after kill -9")
+        assert status["resumable"] and 1 <= status["palpations"] < 4
+        done_before = status["palpations"]
+        assert palpctl(second, run_cli, "scan", "start", "--resume")["already_done"] == done_before
+        second.wait_for(lambda s: s["palpations"] > done_before, timeout_s=60, what="one more palpation")
+        second.signal(signal.SIGTERM)  # lets the palpation under way finish, then motors off
+        assert second.wait() == 0
+    finally:
+        second.close()
+    third = daemon_on(bench, tmp_path)
+    try:
+        status = third.wait_for(lambda s: s["state"] == "ready", what="ready after SIGTERM")
+        assert status["resumable"]
+        palpctl(third, run_cli, "scan", "start", "--resume", "--wait")
+        estimate = palpctl(third, run_cli, "estimate")
+        assert [p["index"] for p in estimate["probes"]] == [0, 1, 2, 3]
+        assert all(p["stiffness_n_per_mm"] is not None for p in estimate["probes"])
+        assert third.call("status")["resumable"] is False
+    finally:
+        third.close()
+
+
+def test_serve_refuses_a_placement_out_of_reach_before_it_touches_the_bench(bench, tmp_path, run_cli):
+    far = bench_config(tmp_path / "far.toml", {"bridge": "socket://127.0.0.1:1", "netft": "netft://127.0.0.1:1"},
+                       "[tissue]\norigin_mm = [0.0, -60.0, -400.0]\n")
+    result = run_cli("serve", "--config", far, env=Daemon(tmp_path).env | {"PALPD_DAEMON__SCENE": ""})
+    assert_one_line_error(result, "tissue.origin_mm", "out of the arm's reach")
+    assert result.returncode == 78
