@@ -44,6 +44,11 @@ def curve_keys(server_key: str | Path | bytes, key: str | Path) -> dict:
         server_public = server_key
     else:
         server_public, _ = zmq.auth.load_certificate(str(server_key))
+    from palpd.bus.keyfiles import secret_key_problem
+
+    problem = secret_key_problem(key)  # as ssh does: a secret key others can read is refused, not used
+    if problem:
+        raise ValueError(problem)
     public, secret = zmq.auth.load_certificate(str(key))
     if secret is None:
         raise ValueError(f"{key} holds no secret key (use NAME.key_secret from `palpd keygen`)")

@@ -27,12 +27,17 @@ def add_parser(subparsers):
 def run(args) -> int:
     from palpd import __version__
     from palpd.bench import check_reach
+    from palpd.bus.security import Security
+    from palpd.daemon.viewers import check_live_view
     from palpd.config import load_settings
     from palpd.daemon.logs import setup_logging
 
     settings = load_settings(args.config)
     scene, scene_path = _scene(settings, args.scene)
     check_reach(settings, scene)  # before anything binds or spawns: one line, exit 78
+    security = Security.from_settings(settings.bus)  # CURVE for non-loopback endpoints, private key files
+    if settings.daemon.http:
+        check_live_view(settings.daemon.http, settings.daemon.http_token)  # a token for a non-loopback view
     log = setup_logging(args.log_level or settings.daemon.log_level).getChild("daemon")
 
     def announce() -> None:  # once every endpoint is bound: a refusal before that stays one line
@@ -42,7 +47,7 @@ def run(args) -> int:
             log.info("environment overrides: %s", ", ".join(overrides))
         log.info("bench: %s", _describe_bench(settings, scene, scene_path))
 
-    return _serve(settings, scene, announce)
+    return _serve(settings, scene, security, announce)
 
 
 def _scene(settings, requested: str | None):
@@ -72,7 +77,7 @@ def _describe_bench(settings, scene, scene_path) -> str:
             "on the wall clock")
 
 
-def _serve(settings, scene, announce) -> int:
+def _serve(settings, scene, security, announce) -> int:
     from palpd.control.remote import open_servo_bench
     from palpd.daemon.supervisor import Supervisor
 
@@ -81,7 +86,7 @@ def _serve(settings, scene, announce) -> int:
 
     bench = reopen_bench()
     try:
-        supervisor = Supervisor(settings, bench, reopen_bench)
+        supervisor = Supervisor(settings, bench, reopen_bench, security)
         supervisor.open(announce)
         return supervisor.serve()
     finally:
