@@ -14,6 +14,7 @@ from drivers.geometry import TissueFrame
 from drivers.phantom import model
 from palpd.control.controller import CartesianPD
 from palpd.control.forces import ForceReader
+from palpd.control.health import SensorHealth
 from palpd.control.safety import NANO17_FORCE_RANGE_N, SafetySupervisor, refuse_unsafe_configuration
 from palpd.control.servo import ServoLoop
 from palpd.errors import ConfigError
@@ -114,14 +115,17 @@ def _assemble(settings, robot, sensor, clock, world=None) -> Bench:
     refuse_unsafe_configuration(settings, frame, getattr(sensor, "force_range_n", NANO17_FORCE_RANGE_N))
     forces = ForceReader(settings.palpation.force_axes, settings.sensor.mount == "link2", q_aligned)
     control = settings.control
+    supervisor = SafetySupervisor(settings.safety, settings.tissue.size_mm, _home_mm(frame), 1.0 / settings.servo.rate_hz)
+    health = SensorHealth(settings.safety, forces, settings.palpation.clearance_mm, 1.0 / settings.servo.rate_hz)
+    supervisor.monitors.append(health)
     servo = ServoLoop(
         robot, sensor, clock, frame,
         CartesianPD(control.stiffness_n_per_mm, control.damping_n_s_per_mm, settings.robot.current_limit_a,
                     settings.safety.force_cap_n),
-        SafetySupervisor(settings.safety, settings.tissue.size_mm, _home_mm(frame), 1.0 / settings.servo.rate_hz),
-        forces, settings.servo.rate_hz, control.velocity_filter_hz,
+        supervisor, forces, settings.servo.rate_hz, control.velocity_filter_hz,
         safety_settings=settings.safety, retract_height_mm=settings.palpation.clearance_mm,
     )
+    servo.health = health  # its summary (re-tares, largest drift) goes into the scan report
     return Bench(servo, clock, frame, settings.tissue.size_mm, world)
 
 

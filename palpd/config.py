@@ -104,6 +104,13 @@ class SafetySettings(_Section):
     max_tick_gap_s: Positive = 0.005  # a servo tick later than this after the last one is a stalled loop
     retract_speed_mm_s: Annotated[float, Field(gt=0, le=200)] = 60.0  # controlled stop: back out this fast
     retract_timeout_s: Annotated[float, Field(gt=0, le=5)] = 0.5  # then cut the current, retracted or not
+    # Sensor health (palpd.control.health): a reading repeated this long is a frozen sensor; at every approach
+    # the force out of contact over drift_window_s is compared with the tare: re-tare beyond drift_retare_n,
+    # fault beyond drift_fault_n.
+    frozen_window_s: Positive = 0.003
+    drift_window_s: Positive = 0.05
+    drift_retare_n: Positive = 0.02
+    drift_fault_n: Positive = 0.5
 
 
 class ScanSettings(_Section):

@@ -41,6 +41,9 @@ BOUNDS: dict[str, Bound] = {
     "sensor.stale_after_s": Bound(0.1, "s", "an older force reading no longer describes the contact"),
     "servo.rate_hz": Bound(4000.0, "Hz", "the bridge exchanges at most one frame every 250 us", low=100.0,
                            low_inclusive=True),
+    "palpation.speed_mm_s": Bound(100.0, "mm/s", "a faster indentation is an impact, not a palpation"),
+    "palpation.approach_speed_mm_s": Bound(100.0, "mm/s", "the probe must be able to stop at first contact"),
+    "palpation.travel_speed_mm_s": Bound(300.0, "mm/s", "travel stays well below safety.max_tip_speed_mm_s's bound"),
     "palpation.hold_s": Bound(60.0, "s", "a longer hold is a creep test, not a palpation", low_inclusive=True),
     "safety.force_cap_n": Bound(8.5, "N", "the Phantom Premium 1.5A's peak tip force: a higher cap never trips"),
     "safety.workspace_margin_mm": Bound(50.0, "mm", "the box guards the tissue, not the whole reach of the arm",
@@ -56,6 +59,10 @@ BOUNDS: dict[str, Bound] = {
     "safety.max_tick_gap_s": Bound(0.1, "s", "a longer gap is no longer servo control"),
     "safety.retract_speed_mm_s": Bound(200.0, "mm/s", "a controlled stop backs out gently"),
     "safety.retract_timeout_s": Bound(5.0, "s", "a stop that takes longer is no controlled stop"),
+    "safety.frozen_window_s": Bound(0.02, "s", "the force cap is blind while the sensor is frozen"),
+    "safety.drift_window_s": Bound(0.5, "s", "older readings describe an older zero"),
+    "safety.drift_retare_n": Bound(0.5, "N", "a zero further off than that is no drift to correct quietly"),
+    "safety.drift_fault_n": Bound(2.0, "N", "a zero that moved more between two palpations is a broken sensor"),
     "daemon.stop_timeout_s": Bound(15.0, "s", "systemd kills palpd after TimeoutStopSec (20 s in palpd.service), "
                                               "mid-palpation"),
     "daemon.status_interval_s": Bound(1.0, "s", "a subscriber joining at any time must have the status within "
@@ -89,10 +96,36 @@ def _workspace_z(s) -> str | None:
     return None
 
 
+def _speeds(s) -> str | None:
+    limit = s.safety.max_tip_speed_mm_s
+    for name in ("palpation.speed_mm_s", "palpation.approach_speed_mm_s", "palpation.travel_speed_mm_s",
+                 "safety.retract_speed_mm_s"):
+        section, key = name.split(".")
+        speed = getattr(getattr(s, section), key)
+        if speed >= limit:
+            return (f"{name} = {speed:g} is not below safety.max_tip_speed_mm_s ({limit:g} mm/s): every such move "
+                    "would stop the robot")
+    return None
+
+
 def _velocity_filter(s) -> str | None:
     if s.control.velocity_filter_hz >= s.servo.rate_hz / 2:
         return (f"control.velocity_filter_hz = {s.control.velocity_filter_hz:g} must be below half of "
                 f"servo.rate_hz ({s.servo.rate_hz:g} Hz): a filter above the Nyquist rate filters nothing")
+    return None
+
+
+def _sensor_health(s) -> str | None:
+    safety, period_s = s.safety, 1.0 / s.servo.rate_hz
+    if safety.frozen_window_s < 2 * period_s:
+        return (f"safety.frozen_window_s = {safety.frozen_window_s:g} s is shorter than two servo periods "
+                f"(servo.rate_hz = {s.servo.rate_hz:g}): a reading repeats once whenever a tick comes early")
+    if safety.drift_retare_n >= safety.drift_fault_n:
+        return (f"safety.drift_retare_n ({safety.drift_retare_n:g} N) must be below safety.drift_fault_n "
+                f"({safety.drift_fault_n:g} N): re-tare small drift, fault on large")
+    if safety.drift_retare_n >= s.palpation.contact_on_n:
+        return (f"safety.drift_retare_n ({safety.drift_retare_n:g} N) must be below palpation.contact_on_n "
+                f"({s.palpation.contact_on_n:g} N): a drift left uncorrected would read as contact")
     return None
 
 
@@ -104,8 +137,9 @@ def _sample_age(s) -> str | None:
 
 
 # (the setting the rule is about, the rule): the problem names every setting involved.
-CONSISTENCY = (("safety.workspace_z_mm", _workspace_z), ("control.velocity_filter_hz", _velocity_filter),
-               ("safety.max_sample_age_s", _sample_age))
+CONSISTENCY = (("safety.workspace_z_mm", _workspace_z), ("safety.max_tip_speed_mm_s", _speeds),
+               ("control.velocity_filter_hz", _velocity_filter),
+               ("safety.max_sample_age_s", _sample_age), ("safety.drift_retare_n", _sensor_health))
 
 
 def consistency_problem(settings) -> tuple[str, str] | None:

@@ -56,7 +56,7 @@ def loop_stall(b): stall(b.clock, 0.02)
 
 
 @pytest.mark.parametrize("inject, code", [
-    (freeze, "stale_sample"), (nan, "invalid_sample"), (jump, "encoder_jump"), (amplifier, "amplifier_fault"),
+    (freeze, "sensor_frozen"), (nan, "invalid_sample"), (jump, "encoder_jump"), (amplifier, "amplifier_fault"),
     (estop_button, "estop"), (estop_command, "estop"), (loop_stall, "loop_stall"),
 ])
 def test_each_fault_cuts_the_motors_within_a_tick_and_latches(inject, code):
@@ -96,9 +96,14 @@ def test_a_hidden_rigid_object_trips_the_cap_and_the_arm_backs_out_before_the_mo
 
 
 def test_a_force_cap_above_the_sensor_range_is_refused_at_start_up():
-    settings = Settings().updated(safety={"force_cap_n": 30.0})
-    with pytest.raises(ConfigError, match="force_cap_n = 30.0 N is not below the force sensor's range"):
-        open_simulated_bench(settings, Scene(name="f"))
+    from drivers.geometry import TissueFrame
+    from palpd.control.safety import refuse_unsafe_configuration
+
+    with pytest.raises(ConfigError, match="at most 8.5 N; the Phantom Premium 1.5A's peak tip force"):
+        Settings().updated(safety={"force_cap_n": 30.0})  # beyond what the arm can push: refused when read
+    frame = TissueFrame(tuple(v / 1000.0 for v in Settings().tissue.origin_mm))
+    with pytest.raises(ConfigError, match="force_cap_n = 6.0 N is not below the force sensor's range of 5.0 N"):
+        refuse_unsafe_configuration(Settings(), frame, force_range_n=(5.0, 5.0, 5.0))  # a smaller sensor
 
 
 def test_tissue_out_of_reach_is_refused_at_start_up():

@@ -6,7 +6,7 @@ import signal
 
 import pytest
 
-from conftest import assert_one_line_error
+from conftest import SCENES, assert_one_line_error
 from daemon_client import Daemon
 from remote_bench import bench_config, serve_simulator
 
@@ -92,3 +92,12 @@ def test_serve_refuses_a_placement_out_of_reach_before_it_touches_the_bench(benc
     result = run_cli("serve", "--config", far, env=Daemon(tmp_path).env | {"PALPD_DAEMON__SCENE": ""})
     assert_one_line_error(result, "tissue.origin_mm", "out of the arm's reach")
     assert result.returncode == 78
+
+
+def test_a_frozen_net_ft_box_from_palpd_simulate_fault_stops_a_remote_scan(tmp_path, run_cli):
+    """`palpd simulate --fault sensor_frozen@0`: the box keeps streaming, always the same counts."""
+    for endpoints in serve_simulator(tmp_path, "--bridge", "tcp://127.0.0.1:0", "--netft", "127.0.0.1:0",
+                                     "--fault", "sensor_frozen@0"):
+        config = bench_config(tmp_path / "frozen.toml", endpoints)
+        result = run_cli("scan", "--scene", SCENES / "paper.toml", "--config", config, "--max-palpations", "1")
+    assert result.returncode == 1 and "(sensor_frozen)" in result.stderr, result.stderr

@@ -4,7 +4,7 @@ from __future__ import annotations
 import csv
 import math
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated, Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -52,6 +52,16 @@ class Placement(_Strict):
     rotation_deg: FiniteFloat = 0.0  # tissue turned about its normal, as the paper's test sets were
 
 
+FaultKind = Literal["sensor_frozen", "sensor_drift", "nan_samples", "encoder_jump", "amplifier_fault"]
+
+
+class FaultAt(_Strict):
+    """A fault the simulated bench develops at_s seconds after it starts (drivers.sim.faults.FAULT_KINDS)."""
+
+    at_s: NonNegativeFloat = 0.0
+    value: Optional[FiniteFloat] = None  # sensor_drift: N/s along the sensor's z; encoder_jump: counts on joint 2
+
+
 class Scene(_Strict):
     name: Annotated[str, Field(min_length=1)]
     seed: Annotated[int, Field(ge=0)] = 0
@@ -59,6 +69,7 @@ class Scene(_Strict):
     lump: list[Lump] = []
     sensor: Sensor = Sensor()
     placement: Placement = Placement()
+    faults: dict[FaultKind, FaultAt] = {}  # [faults] sensor_drift = {at_s = 5.0, value = -0.5}
 
     @model_validator(mode="after")
     def _lumps_touch_the_tissue(self):

@@ -33,7 +33,7 @@ class SimWorld:
         self.amplifiers_on = False
         self.estop = False
         self.contact_force_robot: model.Vec3 = NO_FORCE
-        self.faults = SimFaults()  # fault injection for tests; all off
+        self.faults = SimFaults(scene.faults, self.t_s)  # fault injection: the scene's [faults], and tests
         self.hand = None  # when set, a person moves the arm: hand.q_at(t_s) overrides the dynamics
         self._rotation_deg = scene.placement.rotation_deg
         self._tissue = scene.tissue
@@ -64,7 +64,7 @@ class SimWorld:
     def sensor_reading(self) -> tuple[float, list[float]]:
         """(time of the reading, load on the Nano17 in N and N*mm with its bias and noise), before any DAQ.
 
-        A frozen sensor keeps handing out its last reading, time and all.
+        A frozen sensor keeps handing out its last reading's values with fresh times (stuck gauges).
         """
         return self.faults.wrench(self.t_s, self.sensor.wrench(self._force_on_sensor()))
 

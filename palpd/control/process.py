@@ -144,7 +144,7 @@ class ServoProcess:
     def _state(self) -> dict:
         servo, world = self.servo, self.bench.world
         return {"fault": servo.fault, "last_tick": servo.last_tick, "max_contact_force_n": servo.max_contact_force_n,
-                "motors_on": servo.motors_on, "bias_n": servo.forces.bias_n,
+                "motors_on": servo.motors_on, "bias_n": servo.forces.bias_n, "sensor": servo.health.summary(),
                 "amplifiers_on": world.amplifiers_on if world is not None else None}
 
 

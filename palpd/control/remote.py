@@ -92,10 +92,20 @@ class RemoteTiming:
         return self.servo.call("timing")
 
 
+class RemoteHealth:
+    """The servo process's sensor health (palpd.control.health), as its last reply said."""
+
+    def __init__(self) -> None:
+        self.last = {"retares": 0, "max_drift_n": 0.0}
+
+    def summary(self) -> dict:
+        return dict(self.last)
+
+
 class RemoteServo:
     def __init__(self, process, conn, ring: SampleRing) -> None:
         self.process, self.conn, self.ring = process, conn, ring
-        self.forces, self.timing = RemoteForces(self), RemoteTiming(self)
+        self.forces, self.timing, self.health = RemoteForces(self), RemoteTiming(self), RemoteHealth()
         self.fault: Fault | None = None
         self.last_tick = None
         self.max_contact_force_n = 0.0
@@ -215,6 +225,7 @@ class RemoteServo:
         self.fault, self.last_tick = state["fault"], state["last_tick"]
         self.max_contact_force_n, self.motors_on = state["max_contact_force_n"], state["motors_on"]
         self.forces.bias_n, self.amplifiers_on = state["bias_n"], state["amplifiers_on"]
+        self.health.last = state["sensor"]
 
     def _lost(self, why: str):
         """The child is gone or hung: kill it (the bridge watchdog cuts the current), latch, raise."""

@@ -53,14 +53,25 @@ class SafetySupervisor:
         margin = settings.joint_limit_margin_rad
         self.joint_ranges = tuple((low + margin, high - margin) for low, high in model.JOINT_LIMITS_RAD)
         self.box_mm = workspace_box_mm(settings, tissue_size_mm, home_mm)
+        self.monitors: list = []  # more checks with check(tick) and reset() (palpd.control.health.SensorHealth)
         self._previous_q = None
 
     def reset(self) -> None:
         self._previous_q = None
+        for monitor in self.monitors:
+            monitor.reset()
 
     def check(self, tick) -> Fault | None:
         """The first reason to stop at this tick, or None."""
-        return self._device(tick) or self._timing(tick) or self._sample(tick) or self._motion(tick)
+        return (self._device(tick) or self._timing(tick) or self._sample(tick) or self._monitors(tick)
+                or self._motion(tick))
+
+    def _monitors(self, tick) -> Fault | None:
+        for monitor in self.monitors:
+            fault = monitor.check(tick)
+            if fault is not None:
+                return fault
+        return None
 
     def check_device(self, tick) -> Fault | None:
         """Only the robot's own status bits: what still matters while the motors are off."""
