@@ -154,7 +154,7 @@ class BusSettings(_Section):
 
 class DaemonSettings(_Section):
     state_dir: str = ""  # sessions live here; "" = $STATE_DIRECTORY (systemd) or ~/.local/state/palpd
-    scene: str = ""  # the simulated bench's scene (file or shipped name) while robot.url is sim://; "" = paper
+    scene: str = ""  # the simulated bench's scene (file or shipped name; "" = paper); on hardware: where the tissue is
     realtime: bool = True  # simulated bench on the wall clock (false: virtual time, as fast as the CPU allows)
     stop_timeout_s: Positive = 10.0  # SIGTERM/scan.stop: wait this long for the palpation to finish, then abort
     log_level: Literal["debug", "info", "warning", "error"] = "info"  # `palpd serve --log-level` overrides it
