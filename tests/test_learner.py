@@ -8,7 +8,7 @@ from hypothesis import HealthCheck, given, settings as hsettings, strategies as 
 from drivers.sim.tissue import lump_profile, lump_sharpness
 from palpd.config import LearnerSettings
 from palpd.learner import Learner
-from palpd.learner.threshold import levels
+#from palpd.learner.threshold import levels
 
 TISSUE = 0.12
 

@@ -1,0 +1,79 @@
+"""When a parametric lump is pinned down by readings, not only by its model.
+
+A few readings near one side of a lump can fit a circle (or two lumps side by
+side can fit one) to a fraction of a millimetre in the Laplace approximation
+while the rest of it is unexplored: the posterior is then many circles, not the
+one Gaussian the approximation draws. A lump counts as pinned only when it has
+been felt from inside (a reading within CONFIRM_RHO of its centre, in units of
+its boundary, or within the probe spacing of a lump smaller than that) and its
+edge band holds readings on both sides of every line through its centre (no
+gap of half a turn or more between them, around its own axes; the part of the
+edge outside the palpable area needs none). These say where to probe first.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from palpd.learner import shapes
+
+CONFIRM_RHO = 0.6
+EDGE_BAND = (0.6, 1.6)
+MAX_GAP_RAD = math.pi
+OUTSIDE_STEPS = 36
+
+
+def unconfirmed_centre(fit, readings_xy: np.ndarray, spacing_mm: float) -> np.ndarray | None:
+    """The centre of the first lump no reading has felt from inside, or None."""
+    for params in _lumps(fit):
+        lr2, _ = shapes.log_rho2(params, readings_xy, fit.family.kind == "ellipses")
+        reach = max(CONFIRM_RHO, spacing_mm / math.exp(params[2]))
+        if not np.any(lr2 <= 2.0 * math.log(reach)):
+            return params[:2]
+    return None
+
+
+def uncovered_edge(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float) -> np.ndarray | None:
+    """The boundary point in the middle of the first lump's widest unread stretch of edge, or None."""
+    half = np.asarray(size_mm, dtype=float) / 2.0
+    for params in _lumps(fit):
+        ellipse = fit.family.kind == "ellipses"
+        lr2, _ = shapes.log_rho2(params, readings_xy, ellipse)
+        widen = spacing_mm / math.exp(params[2])
+        band = (lr2 >= 2.0 * math.log(max(EDGE_BAND[0] - widen, 1e-3))) & (lr2 <= 2.0 * math.log(EDGE_BAND[1] + widen))
+        steps = 2.0 * math.pi * np.arange(OUTSIDE_STEPS) / OUTSIDE_STEPS
+        outside = [t for t in steps if np.any(np.abs(_boundary_point(params, ellipse, t)) > half)]
+        phases = np.sort(np.concatenate([_phase(params, readings_xy[band], ellipse), outside]))
+        if phases.size == 0:
+            return _boundary_point(params, ellipse, 0.0)
+        gaps = np.diff(np.concatenate([phases, [phases[0] + 2.0 * math.pi]]))
+        widest = int(np.argmax(gaps))
+        if gaps[widest] >= MAX_GAP_RAD:
+            return _boundary_point(params, ellipse, phases[widest] + 0.5 * gaps[widest])
+    return None
+
+
+def _lumps(fit) -> list[np.ndarray]:
+    return [fit.theta[fit.family.lump_slice(j)] for j in range(fit.family.k)]
+
+
+def _frame(params: np.ndarray, ellipse: bool) -> tuple[float, float, float]:
+    major, minor, angle_deg = shapes.axes_and_angle(params, ellipse)
+    return major, minor, math.radians(angle_deg)
+
+
+def _phase(params: np.ndarray, xy: np.ndarray, ellipse: bool) -> np.ndarray:
+    """Each point's angle around the lump in its own (ellipse-normalised) frame, in [0, 2π)."""
+    major, minor, angle = _frame(params, ellipse)
+    u = xy - params[:2]
+    along = u[:, 0] * math.cos(angle) + u[:, 1] * math.sin(angle)
+    across = -u[:, 0] * math.sin(angle) + u[:, 1] * math.cos(angle)
+    return np.arctan2(across / minor, along / major) % (2.0 * math.pi)
+
+
+def _boundary_point(params: np.ndarray, ellipse: bool, t: float) -> np.ndarray:
+    major, minor, angle = _frame(params, ellipse)
+    along, across = major * math.cos(t), minor * math.sin(t)
+    return params[:2] + np.array([along * math.cos(angle) - across * math.sin(angle),
+                                  along * math.sin(angle) + across * math.cos(angle)])
