@@ -20,7 +20,7 @@ from palpd.learner import shapes
 
 CONFIRM_RHO = 0.6
 EDGE_BAND = (0.6, 1.6)
-MAX_GAP_RAD = math.pi
+MAX_GAP_RAD = 2.0 * math.pi / 3.0
 OUTSIDE_STEPS = 36
 
 

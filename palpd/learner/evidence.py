@@ -22,13 +22,14 @@ invisible extra), and is left out.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.special import ndtri
 
 from palpd.learner import shapes
 from palpd.learner.likelihood import log_likelihood, noise_sd_ml, residuals
+from palpd.learner.solver import levenberg_marquardt
 from palpd.learner.observations import Observations
 from palpd.learner.threshold import FALSE_LUMP_RATE
 
@@ -39,6 +40,8 @@ MAX_CONTRAST = 999.0
 MIN_RADIUS_MM = 0.5
 LEVEL_SD, SLOPE_SD = 2.0, 0.25  # background prior: log level around the readings' median; log change per half-size
 OVERLAP_MM = 0.25
+HOPELESS = 30.0  # nats: a start this far below the best one's height is dropped (after GIVE_UP_AFTER steps)
+GIVE_UP_AFTER = 8
 COST_TOLERANCE = 1e-4  # nats: a fit is done when a step gains less (evidences differ by whole nats)  # softness of the rule that lumps do not sit inside one another
 
 
@@ -93,7 +96,8 @@ class Fit:
     log_posterior: float
     log_evidence: float
     supported: bool
-    n: int
+    n: int  # readings when fitted
+    log_det: float  # log det of the curvature then
 
     @property
     def name(self) -> str:
@@ -102,31 +106,32 @@ class Fit:
 
 def prior_residuals(family: shapes.Family, theta: np.ndarray, priors: Priors) -> tuple[np.ndarray, np.ndarray]:
     """The background's Gaussian prior and the no-lump-inside-another rule, as residuals with their Jacobian."""
-    rows = [np.eye(1, family.size, 0)[0] / LEVEL_SD, np.eye(1, family.size, 1)[0] / SLOPE_SD,
-            np.eye(1, family.size, 2)[0] / SLOPE_SD]
-    values = [(theta[0] - priors.level) / LEVEL_SD, theta[1] / SLOPE_SD, theta[2] / SLOPE_SD]
-    for j in range(family.k):
-        for m in range(j + 1, family.k):
-            value, row = _overlap(family, theta, j, m)
-            values.append(value)
-            rows.append(row)
-    return np.array(values), np.array(rows)
+    values = np.array([(theta[0] - priors.level) / LEVEL_SD, theta[1] / SLOPE_SD, theta[2] / SLOPE_SD])
+    rows = np.zeros((3, family.size))
+    rows[[0, 1, 2], [0, 1, 2]] = 1.0 / np.array([LEVEL_SD, SLOPE_SD, SLOPE_SD])
+    if family.k < 2:
+        return values, rows
+    overlap, overlap_rows = _overlaps(family, theta)
+    return np.concatenate([values, overlap]), np.vstack([rows, overlap_rows])
 
 
-def _overlap(family: shapes.Family, theta: np.ndarray, j: int, m: int) -> tuple[float, np.ndarray]:
-    """How far two lumps' centres sit inside half their summed radii (0 when apart), in OVERLAP_MM."""
-    a, b = family.lump_slice(j), family.lump_slice(m)
-    dx, dy = theta[a.start] - theta[b.start], theta[a.start + 1] - theta[b.start + 1]
-    d = math.hypot(dx, dy) + 1e-9
-    ra, rb = math.exp(theta[a.start + 2]), math.exp(theta[b.start + 2])
+def _overlaps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far each pair of lumps' centres sit inside half their summed radii (0 when apart), in OVERLAP_MM."""
+    lumps = shapes.lumps_of(family, theta)
+    j, m = np.triu_indices(family.k, 1)
+    dx, dy = lumps[j, 0] - lumps[m, 0], lumps[j, 1] - lumps[m, 1]
+    d = np.hypot(dx, dy) + 1e-9
+    ra, rb = np.exp(lumps[j, 2]), np.exp(lumps[m, 2])
     excess = 0.5 * (ra + rb) - d
-    row = np.zeros(family.size)
-    if excess <= 0:
-        return 0.0, row
-    row[a.start], row[a.start + 1] = -dx / d, -dy / d
-    row[b.start], row[b.start + 1] = dx / d, dy / d
-    row[a.start + 2], row[b.start + 2] = 0.5 * ra, 0.5 * rb
-    return excess / OVERLAP_MM, row / OVERLAP_MM
+    inside = excess > 0
+    rows = np.zeros((len(j), family.k, family.per_lump))
+    pair = np.arange(len(j))
+    for index, lump, sign in ((j, 0, 1.0), (m, 1, -1.0)):
+        rows[pair, index, 0] = -sign * dx / d
+        rows[pair, index, 1] = -sign * dy / d
+        rows[pair, index, 2] = 0.5 * (ra if lump == 0 else rb)
+    rows = np.hstack([np.zeros((len(j), 3)), rows.reshape(len(j), -1)]) * inside[:, None]
+    return np.where(inside, excess, 0.0) / OVERLAP_MM, rows / OVERLAP_MM
 
 
 def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[np.ndarray],
@@ -138,9 +143,12 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
     readings say whatever the details, and the second holds far more posterior mass."""
     lo, hi = priors.bounds(family)
     noise = max(noise_sd or noise_floor, noise_floor)
-    best = None
+    best, lowest = None, np.inf
     for start in starts:
-        theta = _solve(family, obs, priors, _inside(start, lo, hi), lo, hi, noise)
+        theta, cost = _solve(family, obs, priors, _inside(start, lo, hi), lo, hi, noise, (GIVE_UP_AFTER, lowest + HOPELESS))
+        lowest = min(lowest, cost)
+        if cost > lowest + HOPELESS:
+            continue
         mode = _evidence(family, theta, obs, priors, noise, noise_floor)
         if best is None or mode.log_evidence > best.log_evidence:
             best = mode
@@ -154,7 +162,7 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
         if abs(math.log(new / noise)) < 0.05:
             break
         noise = new
-        theta = _solve(family, obs, priors, theta, lo, hi, noise)
+        theta, _ = _solve(family, obs, priors, theta, lo, hi, noise)
     return _evidence(family, theta, obs, priors, noise, noise_floor, tau_log)
 
 
@@ -170,42 +178,9 @@ def _stacked(family, theta, obs, priors, noise):
     return np.concatenate([r, pr]), np.vstack([jr, pj])
 
 
-def _solve(family, obs, priors, theta0, lo, hi, noise) -> np.ndarray:
-    return levenberg_marquardt(lambda theta: _stacked(family, theta, obs, priors, noise), theta0, lo, hi)
-
-
-def levenberg_marquardt(fun, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, max_iter: int = 80) -> np.ndarray:
-    """Minimise ½|r(x)|² within the box [lo, hi]; fun(x) returns (r, Jacobian).
-
-    Marquardt's scaled damping with the step projected onto the box: the parameters
-    are few and well scaled by the damping, so this small loop beats a general solver's overhead.
-    """
-    x = x0.copy()
-    r, jac = fun(x)
-    cost = 0.5 * float(r @ r)
-    damping = 1e-3
-    for _ in range(max_iter):
-        a, g = jac.T @ jac, jac.T @ r
-        scale = np.maximum(np.diag(a), 1e-12 * max(float(np.max(np.diag(a))), 1e-300))
-        try:
-            step = np.linalg.solve(a + damping * np.diag(scale), -g)
-        except np.linalg.LinAlgError:
-            damping *= 10.0
-            continue
-        trial = np.clip(x + step, lo, hi)
-        r_new, jac_new = fun(trial)
-        new_cost = 0.5 * float(r_new @ r_new)
-        if np.isfinite(new_cost) and new_cost < cost:
-            done = cost - new_cost <= COST_TOLERANCE or np.max(np.abs(trial - x)) < 1e-9
-            x, r, jac, cost = trial, r_new, jac_new, new_cost
-            damping = max(damping / 3.0, 1e-9)
-            if done:
-                break
-        else:
-            damping *= 4.0
-            if damping > 1e10:
-                break
-    return x
+def _solve(family, obs, priors, theta0, lo, hi, noise, give_up=None) -> tuple[np.ndarray, float]:
+    return levenberg_marquardt(lambda theta: _stacked(family, theta, obs, priors, noise), theta0, lo, hi,
+                               COST_TOLERANCE, give_up=give_up)
 
 
 def _log_posterior(family, theta, obs, priors, noise) -> float:
@@ -224,9 +199,22 @@ def _evidence(family, theta, obs, priors, noise, noise_floor, tau_log=None) -> F
         hessian += np.eye(family.size) * 1e-9 * np.trace(hessian)
         sign, logdet = np.linalg.slogdet(hessian)
     post = _log_posterior(family, theta, obs, priors, noise) - 0.5 * _gaussian_prior_norm(family)
-    log_z = post + 0.5 * family.size * math.log(2.0 * math.pi) - 0.5 * logdet + math.lgamma(family.k + 1)
     cov = np.linalg.pinv(hessian)
-    return Fit(family, theta, cov, noise, post, log_z, supported(family, theta, obs, noise_floor, tau_log), obs.n)
+    return Fit(family, theta, cov, noise, post, _log_z(family, post, logdet),
+               supported(family, theta, obs, noise_floor, tau_log), obs.n, logdet)
+
+
+def _log_z(family, log_posterior: float, log_det: float) -> float:
+    return log_posterior + 0.5 * family.size * math.log(2.0 * math.pi) - 0.5 * log_det + math.lgamma(family.k + 1)
+
+
+def refreshed(fit: Fit, obs: Observations, priors: Priors) -> Fit:
+    """The evidence of a fit at its parameters on all readings so far, without refitting: the height
+    on the new readings, the curvature grown as it does (∝ readings) since the fit."""
+    family = fit.family
+    post = _log_posterior(family, fit.theta, obs, priors, fit.noise_sd) - 0.5 * _gaussian_prior_norm(family)
+    log_det = fit.log_det + family.size * math.log(obs.n / max(fit.n, 1))
+    return replace(fit, log_posterior=post, log_evidence=_log_z(family, post, log_det))
 
 
 def _gaussian_prior_norm(family) -> float:

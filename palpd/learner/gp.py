@@ -21,6 +21,7 @@ import numpy as np
 from scipy.linalg import LinAlgError, cholesky, solve_triangular
 
 JITTER = 1e-9  # keeps the factor positive definite when a point is probed twice with zero noise
+BLOCK_ROWS = 128  # V grows by blocks of rows (float32: a gemv over it is memory-bound, half the bytes is half the time)
 SQRT5 = math.sqrt(5.0)
 LOG_2PI = math.log(2.0 * math.pi)
 
@@ -94,7 +95,7 @@ class IncrementalGP:
         """log p(y | kernel): the evidence of the free-form model at this kernel."""
         n = self.n
         w = self._w[:n]
-        return float(-0.5 * w @ w - np.sum(np.log(np.diag(self._L)[:n])) - 0.5 * n * LOG_2PI)
+        return float(-0.5 * w @ w - self._log_det - 0.5 * n * LOG_2PI)
 
     def _self_var(self, i: int) -> float:
         h = self.hyper
@@ -112,15 +113,23 @@ class IncrementalGP:
             return False
         rhs = np.column_stack([self.y - h.mean, kernel(self.xy, self.grid_xy, h)])
         solved = solve_triangular(low, rhs, lower=True, check_finite=False)
-        self._L[:n, :n], self._w[:n], self._V[:n] = low, solved[:, 0], solved[:, 1:]
-        self.mean = h.mean + solved[:, 1:].T @ solved[:, 0]
-        self.var = prior_var(self.grid_xy, h) - np.einsum("ij,ij->j", solved[:, 1:], solved[:, 1:])
+        self._L[:n, :n], self._w[:n] = low, solved[:, 0]
+        self._log_det = float(np.sum(np.log(np.diag(low))))
+        for start in range(0, n, BLOCK_ROWS):
+            block = np.zeros((BLOCK_ROWS, len(self.grid_xy)), dtype=np.float32)
+            part = solved[start:start + BLOCK_ROWS, 1:]
+            block[:len(part)] = part
+            self._blocks.append(block)
+        grid_part = solved[:, 1:]
+        self.mean = h.mean + grid_part.T @ solved[:, 0]
+        self.var = prior_var(self.grid_xy, h) - np.einsum("ij,ij->j", grid_part, grid_part)
         return True
 
     def _reset_factor(self, capacity: int) -> None:
         self._L = np.zeros((capacity, capacity))
-        self._V = np.zeros((capacity, len(self.grid_xy)))
         self._w = np.zeros(capacity)
+        self._log_det = 0.0
+        self._blocks: list[np.ndarray] = []  # V = L⁻¹ K(points, grid) in float32 row blocks: no copy as it grows
         self.mean = np.full(len(self.grid_xy), self.hyper.mean)
         self.var = prior_var(self.grid_xy, self.hyper)
 
@@ -132,22 +141,36 @@ class IncrementalGP:
         row = solve_triangular(self._L[:i, :i], k_old, lower=True, check_finite=False) if i else k_old
         d = math.sqrt(max(self._self_var(i) - float(row @ row), JITTER * h.signal_var))
         self._L[i, :i], self._L[i, i] = row, d
+        self._log_det += math.log(d)
         self._w[i] = (self.y[i] - h.mean - float(row @ self._w[:i])) / d
         v = kernel_to_grid(p[0], self.grid_xy, h)
         if i:
-            v -= row @ self._V[:i]
+            v -= self._project(row)
         v /= d
-        self._V[i] = v
+        self._store(i, v)
         self.mean += v * self._w[i]
         self.var -= v * v
 
+    def _project(self, row: np.ndarray) -> np.ndarray:
+        """row @ V[:len(row)] over the row blocks."""
+        out = np.zeros(len(self.grid_xy))
+        row32 = row.astype(np.float32)
+        for b, block in enumerate(self._blocks):
+            part = row32[b * BLOCK_ROWS:(b + 1) * BLOCK_ROWS]
+            if part.size:
+                out += part @ block[:part.size]
+        return out
+
+    def _store(self, i: int, v: np.ndarray) -> None:
+        if i // BLOCK_ROWS >= len(self._blocks):
+            self._blocks.append(np.zeros((BLOCK_ROWS, len(self.grid_xy)), dtype=np.float32))
+        self._blocks[i // BLOCK_ROWS][i % BLOCK_ROWS] = v
+
     def _grow(self, capacity: int) -> None:
         n = self._L.shape[0]
-        L, V, w = self._L, self._V, self._w
+        L, w = self._L, self._w
         self._L = np.zeros((capacity, capacity))
         self._L[:n, :n] = L
-        self._V = np.zeros((capacity, V.shape[1]))
-        self._V[:n] = V
         self._w = np.zeros(capacity)
         self._w[:n] = w
 

@@ -23,6 +23,7 @@ from palpd.learner.observations import EXACT, Observations
 MAX_LUMPS = 6
 RESTART_EVERY = 4
 RESIZE = (0.6, 1.6)
+CONTENDER_WEIGHT = 1e-3  # a hypothesis this likely gets fresh starts as soon as a reading surprises it
 START_SHARPNESS = 6.0
 ELLIPSE_START_STRETCH = 0.4  # log axis ratio an ellipse start is given along a region's long axis
 
@@ -54,6 +55,7 @@ class Hypotheses:
         self.min_contrast = min_contrast
         self.noise_floor = noise_floor
         self.fits: dict[str, Fit] = {}
+        self.weights: dict[str, float] = {}  # of the last choice: who is worth a fresh look when surprised
 
     def priors(self, obs: Observations) -> Priors:
         return Priors(self.size_mm, self.min_contrast, float(np.median(obs.y)))
@@ -75,7 +77,8 @@ class Hypotheses:
             if fit.supported and fit.log_evidence > fits[self._name_of(best_k)].log_evidence:
                 best_k = k
             prev = fit
-        for k in range(max(1, best_k - 1), best_k + 1):
+        # An elongated lump can look like two circles, so one lump fewer too while counts are small.
+        for k in range(max(1, best_k - 1 if best_k <= 2 else best_k), best_k + 1):
             circles = fits.get(f"circles:{k}")
             if circles is not None and circles.supported:
                 family = shapes.Family("ellipses", k, priors.scale_mm)
@@ -93,7 +96,8 @@ class Hypotheses:
         since surprised it, or every RESTART_EVERY readings (a warm start can sit in a poor optimum)."""
         old = self.fits.get(family.name)
         starts = [] if old is None else [old.theta]
-        if old is None or obs.n % RESTART_EVERY == 0 or self._surprised(old, obs):
+        contender = self.weights.get(family.name, 0.0) >= CONTENDER_WEIGHT
+        if old is None or obs.n % RESTART_EVERY == 0 or (contender and self._surprised(old, obs)):
             starts += new_starts() + ([] if old is None else _resized(old))
         if family.k == 0:
             starts = [np.array([priors.level, 0.0, 0.0])] + starts
@@ -109,28 +113,37 @@ class Hypotheses:
 
     # -- starts -----------------------------------------------------------------------------------
     def _circle_starts(self, fewer: Fit, obs, regions, k, priors) -> list[np.ndarray]:
-        base = fewer.theta if k > 1 else np.array([self.tissue_log, 0.0, 0.0])
-        starts = [np.concatenate([base, lump]) for lump in self._new_lumps(fewer, obs)]
-        if k == 1:
-            starts += [np.concatenate([base, lump]) for lump in self._stiff_lumps(obs)]
+        base = np.array([self.tissue_log, 0.0, 0.0])
+        starts = [np.concatenate([fewer.theta if k > 1 else base, lump]) for lump in self._new_lumps(fewer, obs)]
+        clustered = self._stiff_clusters(obs, k)
+        if clustered:
+            starts += [np.concatenate([base, *lumps]) for lumps in clustered]
         if len(regions) >= k:
             lumps = [_region_lump(r, ellipse=False) for r in sorted(regions, key=lambda r: -r.radius_mm)[:k]]
-            starts.append(np.concatenate([[self.tissue_log, 0.0, 0.0], *lumps]))
+            starts.append(np.concatenate([base, *lumps]))
         return starts
 
-    def _stiff_lumps(self, obs: Observations) -> list[np.ndarray]:
-        """One lump over every reading clearly above the tissue: their centroid, reaching halfway to the soft ones."""
+    def _stiff_clusters(self, obs: Observations, k: int) -> list[list[np.ndarray]]:
+        """k lumps over the readings clearly above the tissue, grouped by k-means: each over its group's
+        centroid, reaching halfway to the nearest soft reading (and a smaller variant)."""
         excess = obs.y - self.tissue_log
-        stiff = excess > math.log1p(self.min_contrast)
-        if not stiff.any():
+        stiff = (excess > math.log1p(self.min_contrast)) & (obs.kind >= 0)
+        if np.count_nonzero(stiff) < k:
             return []
-        centre = obs.xy[stiff].mean(axis=0)
-        inner = float(np.max(np.hypot(*(obs.xy[stiff] - centre).T)))
-        outer = _nearest(centre, obs.xy[~stiff]) if (~stiff).any() else inner + 0.25 * max(self.size_mm)
-        radius = max(0.5 * (inner + outer), inner, 0.6)
-        contrast = max(math.expm1(float(np.median(excess[stiff]))), self.min_contrast * 1.2)
-        return [np.array([centre[0], centre[1], math.log(r), math.log(START_SHARPNESS), math.log(contrast)])
-                for r in (radius, 0.7 * radius)]
+        points = obs.xy[stiff]
+        labels = _kmeans(points, k)
+        lumps = []
+        for j in range(k):
+            group = points[labels == j]
+            if len(group) == 0:
+                return []
+            centre = group.mean(axis=0)
+            inner = float(np.max(np.hypot(*(group - centre).T)))
+            outer = _nearest(centre, obs.xy[~stiff]) if (~stiff).any() else inner + 0.25 * max(self.size_mm)
+            contrast = max(math.expm1(float(np.median(excess[stiff][labels == j]))), self.min_contrast * 1.2)
+            lumps.append((centre, max(0.5 * (inner + outer), inner, 0.6), contrast))
+        return [[np.array([c[0], c[1], math.log(r * f), math.log(START_SHARPNESS), math.log(a)]) for c, r, a in lumps]
+                for f in (1.0, 0.7)]
 
     def _excess(self, fit: Fit, obs: Observations) -> tuple[np.ndarray, np.ndarray]:
         """Each exact reading above the fit, in units of its noise at the floor (the fit's own σ_w may
@@ -161,11 +174,16 @@ class Hypotheses:
         return lumps
 
     def _ellipse_starts(self, circles: Fit, regions: list[Region]) -> list[np.ndarray]:
+        """The circles as they are and stretched like the free-form regions; for one lump, also along x and y."""
         k, theta = circles.family.k, circles.theta
         lumps = [theta[circles.family.lump_slice(j)] for j in range(k)]
-        starts = [np.concatenate([theta[:3], *[_stretched(l, (0.0, 0.0)) for l in lumps]])]
-        for stretch in _stretches(lumps, regions):
-            starts.append(np.concatenate([theta[:3], *[_stretched(l, s) for l, s in zip(lumps, stretch)]]))
+        stretches = [[(0.0, 0.0)] * k]
+        if regions:
+            stretches.append([min(regions, key=lambda r: math.dist(r.center_mm, l[:2])).stretch for l in lumps])
+        if k == 1:
+            stretches += [[(ELLIPSE_START_STRETCH, 0.0)], [(-ELLIPSE_START_STRETCH, 0.0)]]
+        starts = [np.concatenate([theta[:3], *[_stretched(l, st) for l, st in zip(lumps, stretch)]])
+                  for stretch in stretches]
         if len(regions) == k:
             starts.append(np.concatenate([theta[:3], *[_region_lump(r, ellipse=True) for r in regions]]))
         return starts
@@ -181,7 +199,18 @@ class Hypotheses:
         raw = {m: math.exp(candidates[m] - top) for m in names}
         total = sum(raw.values())
         weights = {m: v / total for m, v in raw.items()}
+        self.weights = weights
         return Choice(names[0], weights[names[0]], names[1] if len(names) > 1 else None, weights)
+
+
+def _kmeans(points: np.ndarray, k: int) -> np.ndarray:
+    """Labels of k groups (k-means++, seeded: the same readings always group the same way)."""
+    if k == 1:
+        return np.zeros(len(points), dtype=int)
+    from scipy.cluster.vq import kmeans2
+
+    _, labels = kmeans2(points, k, minit="++", seed=0)
+    return labels
 
 
 def _resized(fit: Fit) -> list[np.ndarray]:
@@ -208,14 +237,3 @@ def _region_lump(region: Region, ellipse: bool) -> np.ndarray:
 
 def _stretched(circle: np.ndarray, stretch) -> np.ndarray:
     return np.concatenate([circle[:3], stretch, circle[3:]])
-
-
-def _stretches(lumps: list[np.ndarray], regions: list[Region]) -> list[list[tuple[float, float]]]:
-    """Starting shapes: each lump stretched like the region nearest it, and along each axis direction."""
-    out = []
-    if regions:
-        out.append([min(regions, key=lambda r: math.dist(r.center_mm, l[:2])).stretch for l in lumps])
-    e = ELLIPSE_START_STRETCH
-    for direction in ((e, 0.0), (-e, 0.0), (0.0, e), (0.0, -e)):
-        out.append([direction] * len(lumps))
-    return out

@@ -20,7 +20,6 @@ from palpd.learner.hypotheses import Hypotheses
 from palpd.learner.observations import EXACT, Observations
 from palpd.learner.threshold import free_form_levels, lump_points, supervised_levels, tau_field
 
-EARLY_REFIT_POINTS = 20  # below this a kernel refit costs next to nothing and the kernel still moves a lot
 REFIT_FLOPS = 2.5e8  # a one-block refit costs n²·G; beyond this the kernel learned so far is kept (no spikes)
 HYPER_POINTS = 150  # the kernel is learned from at most this many readings, evenly spread over the arrival order
 CENSORED_SD = 0.25  # log sd the free-form map gives a bound, read as a reading at the bound
@@ -76,7 +75,7 @@ class Learner(Decision):
 
     def _refit_pays(self) -> bool:
         n = self.gp.n
-        due = n <= EARLY_REFIT_POINTS or n >= self.settings.refit_growth * self._fitted_at
+        due = n >= self.settings.refit_growth * self._fitted_at
         return n >= 3 and due and n * n * len(self.grid_xy) <= REFIT_FLOPS
 
     def _refit(self) -> None:
