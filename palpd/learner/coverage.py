@@ -6,9 +6,10 @@ while the rest of it is unexplored: the posterior is then many circles, not the
 one Gaussian the approximation draws. A lump counts as pinned only when it has
 been felt from inside (a reading within CONFIRM_RHO of its centre, in units of
 its boundary, or within the probe spacing of a lump smaller than that) and its
-edge band holds readings on both sides of every line through its centre (no
-gap of half a turn or more between them, around its own axes; the part of the
-edge outside the palpable area needs none). These say where to probe first.
+edge band (where its profile is between 5 % and 95 % of its height, widened by
+the probe spacing) holds readings all around: no gap of a third of a turn or
+more between them, around its own axes; the part of the edge outside the
+palpable area needs none. These say where to probe first.
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ import numpy as np
 from palpd.learner import shapes
 
 CONFIRM_RHO = 0.6
-EDGE_BAND = (0.6, 1.6)
+EDGE_LEVEL = math.log(19.0)  # the edge band: where the lump's profile is between 5 % and 95 % of its height
 MAX_GAP_RAD = 2.0 * math.pi / 3.0
 OUTSIDE_STEPS = 36
 
@@ -41,7 +42,9 @@ def uncovered_edge(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float) -> 
         ellipse = fit.family.kind == "ellipses"
         lr2, _ = shapes.log_rho2(params, readings_xy, ellipse)
         widen = spacing_mm / math.exp(params[2])
-        band = (lr2 >= 2.0 * math.log(max(EDGE_BAND[0] - widen, 1e-3))) & (lr2 <= 2.0 * math.log(EDGE_BAND[1] + widen))
+        inner = shapes.rho_at(params, -EDGE_LEVEL) - widen
+        outer = shapes.rho_at(params, EDGE_LEVEL) + widen
+        band = (lr2 >= 2.0 * math.log(max(inner, 1e-3))) & (lr2 <= 2.0 * math.log(outer))
         steps = 2.0 * math.pi * np.arange(OUTSIDE_STEPS) / OUTSIDE_STEPS
         outside = [t for t in steps if np.any(np.abs(_boundary_point(params, ellipse, t)) > half)]
         phases = np.sort(np.concatenate([_phase(params, readings_xy[band], ellipse), outside]))

@@ -15,9 +15,6 @@ from palpd.estimate import LumpEstimate
 from palpd.learner import shapes
 from palpd.learner.evidence import Fit
 
-LOG3 = math.log(3.0)
-
-
 def lumps_of(fit: Fit, tau_n_per_mm: float | None = None) -> list[LumpEstimate]:
     out = []
     for j in range(fit.family.k):
@@ -89,10 +86,11 @@ def _ellipse_extras(params: np.ndarray, cov: np.ndarray, scale: float) -> dict:
 
 def _edge(params: np.ndarray, cov: np.ndarray) -> tuple[float, float]:
     edge = shapes.edge_width_mm(params)
-    s, radius = math.exp(params[-2]), math.exp(params[2])
     row = np.zeros(len(params))
-    row[2] = edge
-    row[-2] = -radius * (LOG3 / s) * (3.0 ** (1.0 / s) + 3.0 ** (-1.0 / s))
+    for i in (2, len(params) - 3, len(params) - 2):  # size, tail, sharpness: numerically, it is one number
+        step = np.zeros(len(params))
+        step[i] = 1e-6
+        row[i] = (shapes.edge_width_mm(params + step) - shapes.edge_width_mm(params - step)) / 2e-6
     return edge, _sd(row, cov)
 
 
@@ -100,10 +98,9 @@ def _level_scale(fit: Fit, part: slice, tau_n_per_mm: float) -> float | None:
     """How far out (in units of the 50 % boundary) the lump's stiffness falls to τ; None if it never reaches τ."""
     params = fit.theta[part]
     base = math.exp(float(shapes.background(fit.theta, params[None, :2], fit.family.scale_mm)[0]))
-    contrast, sharpness = math.exp(params[-1]), math.exp(params[-2])
-    p = (tau_n_per_mm / base - 1.0) / contrast
+    p = (tau_n_per_mm / base - 1.0) / math.exp(params[-1])
     if p >= 1.0:
         return None
     if p <= 0.0:
         return 1.0
-    return ((1.0 - p) / p) ** (1.0 / sharpness)
+    return shapes.rho_at(params, math.log((1.0 - p) / p))

@@ -2,7 +2,8 @@
 
 The priors are stated, proper and the same for every scene: a lump's centre
 anywhere over the tissue or overlapping it, its radius log-uniform from 0.5 mm
-to the tissue's size, its edge sharpness log-uniform, its contrast log-uniform
+to the tissue's size, its edge sharpness log-uniform, its tail shape uniform
+(power-law to Gaussian, shapes.py), its contrast log-uniform
 from `min_contrast` (the softest difference that counts as a lump) to 1000×,
 an ellipse's log axis ratio up to log 8. The evidence is
 
@@ -70,7 +71,8 @@ class Priors:
         if ellipse:
             e = math.log(MAX_AXIS_RATIO)
             box += [(-e, e), (-e, e)]
-        return box + [tuple(map(math.log, EDGE_SHARPNESS)), (math.log(self.min_contrast), math.log(MAX_CONTRAST))]
+        return box + [shapes.TAIL_RANGE, tuple(map(math.log, EDGE_SHARPNESS)),
+                      (math.log(self.min_contrast), math.log(MAX_CONTRAST))]
 
     def log_density(self, family: shapes.Family, theta: np.ndarray) -> float:
         """log p(θ) of the uniform lump boxes (the background's Gaussian prior is in its residuals)."""

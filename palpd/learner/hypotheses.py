@@ -142,8 +142,7 @@ class Hypotheses:
             outer = _nearest(centre, obs.xy[~stiff]) if (~stiff).any() else inner + 0.25 * max(self.size_mm)
             contrast = max(math.expm1(float(np.median(excess[stiff][labels == j]))), self.min_contrast * 1.2)
             lumps.append((centre, max(0.5 * (inner + outer), inner, 0.6), contrast))
-        return [[np.array([c[0], c[1], math.log(r * f), math.log(START_SHARPNESS), math.log(a)]) for c, r, a in lumps]
-                for f in (1.0, 0.7)]
+        return [[shapes.make_lump(c, r * f, START_SHARPNESS, a) for c, r, a in lumps] for f in (1.0, 0.7)]
 
     def _excess(self, fit: Fit, obs: Observations) -> tuple[np.ndarray, np.ndarray]:
         """Each exact reading above the fit, in units of its noise at the floor (the fit's own σ_w may
@@ -167,8 +166,7 @@ class Hypotheses:
             reach = _nearest(obs.xy[i], obs.xy[explained]) if explained.any() else 0.25 * max(self.size_mm)
             contrast = max(math.expm1(obs.y[i] - f[i]), self.min_contrast * 1.2)
             for radius in (0.5 * reach, 0.9 * reach):
-                lumps.append(np.array([obs.xy[i][0], obs.xy[i][1], math.log(max(radius, 0.6)),
-                                       math.log(START_SHARPNESS), math.log(contrast)]))
+                lumps.append(shapes.make_lump(obs.xy[i], max(radius, 0.6), START_SHARPNESS, contrast))
             if len(used) == 2:
                 break
         return lumps
@@ -230,9 +228,8 @@ def _nearest(point: np.ndarray, others: np.ndarray) -> float:
 
 
 def _region_lump(region: Region, ellipse: bool) -> np.ndarray:
-    shape = [*region.stretch] if ellipse else []
-    return np.array([*region.center_mm, math.log(max(region.radius_mm, 0.6)), *shape,
-                     math.log(START_SHARPNESS), math.log(max(region.contrast, 0.31))])
+    return shapes.make_lump(region.center_mm, max(region.radius_mm, 0.6), START_SHARPNESS,
+                            max(region.contrast, 0.31), region.stretch if ellipse else None)
 
 
 def _stretched(circle: np.ndarray, stretch) -> np.ndarray:

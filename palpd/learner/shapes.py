@@ -1,19 +1,24 @@
 """The parametric lump family: log stiffness of k lumps on a smoothly varying background.
 
-    log k(x) = β0 + βx·x/L + βy·y/L + log(1 + max_j a_j·p_j(x)),   p = 1 / (1 + ρ^s)
+    log k(x) = β0 + βx·x/L + βy·y/L + log(1 + max_j a_j·p_j(x)),
+    p = 1 / (1 + h),   h = (e^{λ·ρ^s} − 1) / (e^λ − 1)   (h = ρ^s at λ = 0)
 
 Each lump j has a centre, a size R (the radius of a circle, the equal-area
-radius of an ellipse), an edge sharpness s and a contrast a = k_lump/k_tissue − 1.
-ρ is the distance from the centre in units of R (for an ellipse, through the
-shape matrix exp(−E)/R² with E = [[e1, e2], [e2, −e1]], axes R·e^{±|e|/2}), so
-p = ½ exactly on the lump's boundary: its half-height, the felt stiffness
-halfway between tissue and lump, whatever the edge. Large s is a flat top with
-a sharp edge, s ≈ 2 a lump felt through a lot of tissue (a wide, gradual rise).
+radius of an ellipse), an edge sharpness s, a tail shape λ and a contrast
+a = k_lump/k_tissue − 1. ρ is the distance from the centre in units of R (for
+an ellipse, through the shape matrix exp(−E)/R² with E = [[e1, e2], [e2, −e1]],
+axes R·e^{±|e|/2}), so p = ½ exactly on the lump's boundary: its half-height,
+the felt stiffness halfway between tissue and lump, whatever the edge. Large s
+is a flat top with a sharp edge, small s a wide, gradual rise. p = 1 over the
+centre and ½ at ρ = 1 for every s and λ. λ = 0 is the Hill profile
+1/(1 + ρ^s), whose tails fall off as a power (a hard inclusion felt through
+tissue); λ > 0 makes them fall off as exp(−λ·ρ^s) (s = 2, λ ≈ 0.7 is a
+Gaussian bump): one family for lumps from sharp to gradual, whatever their tails.
 Where lumps come close the stiffer one is felt (the max). Working in log
 stiffness keeps readings comparable from 0.005 to 50 N/mm and turns a relative
 error into a constant one.
 
-Parameters are [β0, βx, βy] then per lump [cx, cy, log R, (e1, e2,) log s, log a].
+Parameters are [β0, βx, βy] then per lump [cx, cy, log R, (e1, e2,) λ, log s, log a].
 """
 from __future__ import annotations
 
@@ -23,8 +28,9 @@ from dataclasses import dataclass
 import numpy as np
 
 BACKGROUND_PARAMS = 3
-CIRCLE_PARAMS = 5
-ELLIPSE_PARAMS = 7
+CIRCLE_PARAMS = 6
+ELLIPSE_PARAMS = 8
+TAIL_RANGE = (0.0, 4.0)
 TINY = 1e-12
 
 
@@ -100,17 +106,52 @@ def _d_sinh_over_by_eps(eps: np.ndarray) -> np.ndarray:
 def _heights(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, jacobian: bool):
     """a·p(x) of every lump (n × k) and, if asked, its derivatives (n × k × per-lump params)."""
     lr2, d_lr2 = _log_rho2_all(lumps, xy, ellipse)
-    s, a = np.exp(lumps[:, -2]), np.exp(lumps[:, -1])
-    t = np.clip(0.5 * s * lr2, -700.0, 700.0)
+    tail, s, a = lumps[:, -3], np.exp(lumps[:, -2]), np.exp(lumps[:, -1])
+    log_u = np.clip(0.5 * s * lr2, -700.0, 50.0)  # u = ρ^s
+    t, dt_dlog_u, dt_dtail = _log_h(log_u, tail)
+    t = np.clip(t, -700.0, 700.0)
     p = 1.0 / (1.0 + np.exp(t))
     if not jacobian:
         return a * p, None
     dh_dt = -a * p * (1.0 - p)
     jac = np.empty(lr2.shape + (lumps.shape[1],))
-    jac[:, :, :-2] = (dh_dt * 0.5 * s)[:, :, None] * d_lr2
-    jac[:, :, -2] = dh_dt * t
+    jac[:, :, :-3] = (dh_dt * dt_dlog_u * 0.5 * s)[:, :, None] * d_lr2
+    jac[:, :, -3] = dh_dt * dt_dtail
+    jac[:, :, -2] = dh_dt * dt_dlog_u * log_u
     jac[:, :, -1] = a * p
     return a * p, jac
+
+
+def _log_h(log_u: np.ndarray, tail: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """t = log h for u = e^log_u, with dt/dlog u and dt/dλ (the Hill limit's series near λ = 0)."""
+    u = np.exp(log_u)
+    small = tail < 1e-4
+    lam = np.where(small, 1.0, tail)
+    x = lam * u
+    log_expm1_x = np.where(x > 1e-8, x + np.log1p(-np.exp(-np.maximum(x, 1e-8))), np.log(np.maximum(x, 1e-300)))
+    one_minus = -np.expm1(-np.maximum(x, 1e-300))  # 1 − e^{−x}
+    t = np.where(small, log_u + tail * (u - 1.0) / 2.0, log_expm1_x - np.log(np.expm1(lam)))
+    dt_dlog_u = np.where(small, 1.0 + tail * u / 2.0, x / np.maximum(one_minus, 1e-300))
+    dt_dtail = np.where(small, (u - 1.0) / 2.0, u / np.maximum(one_minus, 1e-300) - 1.0 / -np.expm1(-lam))
+    return t, dt_dlog_u, dt_dtail
+
+
+def rho_at(params: np.ndarray, t: float) -> float:
+    """ρ where a lump's log h equals t (its 1/(1 + eᵗ) level)."""
+    tail, s = params[-3], math.exp(params[-2])
+    if tail < 1e-4:
+        log_u = t
+    else:
+        x = math.log1p(math.exp(min(t + math.log(math.expm1(tail)), 700.0)))  # λu
+        log_u = math.log(max(x / tail, 1e-300))
+    return math.exp(log_u / s)
+
+
+def make_lump(center, radius_mm: float, sharpness: float, contrast: float, stretch=None, tail: float = 0.0):
+    """Parameters of one lump (an ellipse when `stretch` (e1, e2) is given)."""
+    shape = [] if stretch is None else [float(stretch[0]), float(stretch[1])]
+    return np.array([float(center[0]), float(center[1]), math.log(radius_mm), *shape, tail,
+                     math.log(sharpness), math.log(contrast)])
 
 
 def lump_height(params: np.ndarray, xy: np.ndarray, ellipse: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -170,8 +211,8 @@ def axes_and_angle(params: np.ndarray, ellipse: bool) -> tuple[float, float, flo
 
 def edge_width_mm(params: np.ndarray) -> float:
     """Distance from the 75 % to the 25 % level along a radius of the equal-area circle."""
-    s, radius = math.exp(params[-2]), math.exp(params[2])
-    return radius * (3.0 ** (1.0 / s) - 3.0 ** (-1.0 / s))
+    log3 = math.log(3.0)
+    return math.exp(params[2]) * (rho_at(params, log3) - rho_at(params, -log3))
 
 
 def boundary_polygon(params: np.ndarray, ellipse: bool, vertices: int = 72) -> np.ndarray:
