@@ -53,10 +53,24 @@ class Stiffness(Event):
 class LumpMsg(BaseModel):
     model_config = ConfigDict(extra="forbid")
     center_mm: tuple[float, float]
-    radius_mm: float
+    radius_mm: float  # an ellipse's equal-area radius
     center_sd_mm: float
     radius_sd_mm: float
     boundary_mm: list[tuple[float, float]]
+    axes_mm: Optional[tuple[float, float]] = None  # ellipse: (major, minor) semi-axes
+    axes_sd_mm: Optional[tuple[float, float]] = None
+    angle_deg: Optional[float] = None  # ellipse: major axis from +x
+    angle_sd_deg: Optional[float] = None
+    edge_mm: Optional[float] = None  # where modelled: 75 % to 25 % of the lump's height
+    edge_sd_mm: Optional[float] = None
+
+
+class ModelChoice(BaseModel):
+    """The lump hypothesis the evidence chose: `none`, `circles:K`, `ellipse:K` or `free-form`."""
+    model_config = ConfigDict(extra="forbid")
+    chosen: str
+    weight: float  # its posterior weight among the hypotheses compared
+    runner_up: Optional[str] = None
 
 
 class Estimate(Event):
@@ -65,6 +79,7 @@ class Estimate(Event):
     next_probe_mm: Optional[tuple[float, float]] = None
     done: bool = False
     ambiguous_area_mm2: Optional[float] = None
+    model: Optional[ModelChoice] = None  # None before the first reading
 
 
 class FaultMsg(Event):

@@ -46,7 +46,7 @@ def uncovered_edge(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float) -> 
         outer = shapes.rho_at(params, EDGE_LEVEL) + widen
         band = (lr2 >= 2.0 * math.log(max(inner, 1e-3))) & (lr2 <= 2.0 * math.log(outer))
         steps = 2.0 * math.pi * np.arange(OUTSIDE_STEPS) / OUTSIDE_STEPS
-        outside = [t for t in steps if np.any(np.abs(_boundary_point(params, ellipse, t)) > half)]
+        outside = steps[np.any(np.abs(_boundary_point(params, ellipse, steps)) > half, axis=1)]
         phases = np.sort(np.concatenate([_phase(params, readings_xy[band], ellipse), outside]))
         if phases.size == 0:
             return _boundary_point(params, ellipse, 0.0)
@@ -75,8 +75,22 @@ def _phase(params: np.ndarray, xy: np.ndarray, ellipse: bool) -> np.ndarray:
     return np.arctan2(across / minor, along / major) % (2.0 * math.pi)
 
 
-def _boundary_point(params: np.ndarray, ellipse: bool, t: float) -> np.ndarray:
+def _boundary_point(params: np.ndarray, ellipse: bool, t) -> np.ndarray:
+    """The boundary point(s) at the ellipse's own angle(s) t: (2,) for a number, (len(t), 2) for an array."""
     major, minor, angle = _frame(params, ellipse)
-    along, across = major * math.cos(t), minor * math.sin(t)
-    return params[:2] + np.array([along * math.cos(angle) - across * math.sin(angle),
-                                  along * math.sin(angle) + across * math.cos(angle)])
+    along, across = major * np.cos(t), minor * np.sin(t)
+    return params[:2] + np.stack([along * math.cos(angle) - across * math.sin(angle),
+                                  along * math.sin(angle) + across * math.cos(angle)], axis=-1)
+
+
+def near_edges(fit, xy: np.ndarray, spacing_mm: float) -> np.ndarray:
+    """Which points lie in some lump's edge band (widened by the spacing): where a reading moves a
+    reported centre or radius, so the only places worth scoring for them."""
+    near = np.zeros(len(xy), dtype=bool)
+    for params in _lumps(fit):
+        lr2, _ = shapes.log_rho2(params, xy, fit.family.kind == "ellipses")
+        widen = 2.0 * spacing_mm / math.exp(params[2])
+        inner = shapes.rho_at(params, -EDGE_LEVEL) - widen
+        outer = shapes.rho_at(params, EDGE_LEVEL) + widen
+        near |= (lr2 >= 2.0 * math.log(max(inner, 1e-3))) & (lr2 <= 2.0 * math.log(outer))
+    return near

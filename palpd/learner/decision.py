@@ -134,7 +134,10 @@ class Decision:
             target = self._unpinned()
             if target is not None:  # nearest the spot that pins the lump down
                 return 1.0 / (1.0 + np.hypot(xy[:, 0] - target[0], xy[:, 1] - target[1]))
-            return acquisition.boundary_gain(fit, xy, self._noise_var())
+            score = np.zeros(len(xy))
+            near = coverage.near_edges(fit, xy, self.settings.min_spacing_mm)  # where a centre or radius is read
+            score[near] = acquisition.boundary_gain(fit, xy[near], self._noise_var())
+            return score
         tau = np.log(self.free_form_map().tau).ravel()[cells]
         return acquisition.straddle(self.gp.mean[cells], self.gp.std()[cells], tau, self.settings.confidence)
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 from scipy.special import ndtri
@@ -31,7 +32,7 @@ from scipy.special import ndtri
 from palpd.learner import shapes
 from palpd.learner.likelihood import log_likelihood, noise_sd_ml, residuals
 from palpd.learner.solver import levenberg_marquardt
-from palpd.learner.observations import Observations
+from palpd.learner.observations import EXACT, Observations
 from palpd.learner.threshold import FALSE_LUMP_RATE
 
 SUPPORT_SIGMA = 3.0
@@ -43,6 +44,7 @@ LEVEL_SD, SLOPE_SD = 2.0, 0.25  # background prior: log level around the reading
 OVERLAP_MM = 0.25
 HOPELESS = 30.0  # nats: a start this far below the best one's height is dropped (after GIVE_UP_AFTER steps)
 GIVE_UP_AFTER = 8
+CALL_OVERHEAD = 1000  # an evaluation's fixed cost, in residual entries (Python and numpy call overhead)
 COST_TOLERANCE = 1e-4  # nats: a fit is done when a step gains less (evidences differ by whole nats)  # softness of the rule that lumps do not sit inside one another
 
 
@@ -57,12 +59,7 @@ class Priors:
         return 0.5 * max(self.size_mm)
 
     def bounds(self, family: shapes.Family) -> tuple[np.ndarray, np.ndarray]:
-        lo, hi = [-np.inf] * 3, [np.inf] * 3
-        for _ in range(family.k):
-            l, h = zip(*self._lump_box(family.kind == "ellipses"))
-            lo += l
-            hi += h
-        return np.array(lo), np.array(hi)
+        return _bounds(self.size_mm, self.min_contrast, family.kind, family.k)
 
     def _lump_box(self, ellipse: bool) -> list[tuple[float, float]]:
         margin = 0.25 * max(self.size_mm)
@@ -89,6 +86,21 @@ class Priors:
         return out
 
 
+@lru_cache(maxsize=64)
+def _bounds(size_mm, min_contrast, kind, k) -> tuple[np.ndarray, np.ndarray]:
+    """The parameter box of a family (cached: every refit and Kalman step asks for it)."""
+    priors = Priors(size_mm, min_contrast, 0.0)
+    lo, hi = [-np.inf] * 3, [np.inf] * 3
+    for _ in range(k):
+        low, high = zip(*priors._lump_box(kind == "ellipses"))
+        lo += low
+        hi += high
+    out = np.array(lo), np.array(hi)
+    for array in out:
+        array.flags.writeable = False
+    return out
+
+
 @dataclass
 class Fit:
     family: shapes.Family
@@ -100,6 +112,7 @@ class Fit:
     supported: bool
     n: int  # readings when fitted
     log_det: float  # log det of the curvature then
+    work: int = 0  # what the fit cost, in evaluated residual entries (deterministic, unlike a clock)
 
     @property
     def name(self) -> str:
@@ -145,10 +158,11 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
     readings say whatever the details, and the second holds far more posterior mass."""
     lo, hi = priors.bounds(family)
     noise = max(noise_sd or noise_floor, noise_floor)
-    best, lowest = None, np.inf
+    best, lowest, calls = None, np.inf, 0
     for start in starts:
-        theta, cost = _solve(family, obs, priors, _inside(start, lo, hi), lo, hi, noise, (GIVE_UP_AFTER, lowest + HOPELESS))
-        lowest = min(lowest, cost)
+        theta, cost, used = _solve(family, obs, priors, _inside(start, lo, hi), lo, hi, noise,
+                                   (GIVE_UP_AFTER, lowest + HOPELESS))
+        lowest, calls = min(lowest, cost), calls + used
         if cost > lowest + HOPELESS:
             continue
         mode = _evidence(family, theta, obs, priors, noise, noise_floor)
@@ -164,8 +178,10 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
         if abs(math.log(new / noise)) < 0.05:
             break
         noise = new
-        theta, _ = _solve(family, obs, priors, theta, lo, hi, noise)
-    return _evidence(family, theta, obs, priors, noise, noise_floor, tau_log)
+        theta, _, used = _solve(family, obs, priors, theta, lo, hi, noise)
+        calls += used
+    return replace(_evidence(family, theta, obs, priors, noise, noise_floor, tau_log),
+                   work=calls * (CALL_OVERHEAD + obs.n * family.size))
 
 
 def _inside(theta: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -180,7 +196,7 @@ def _stacked(family, theta, obs, priors, noise):
     return np.concatenate([r, pr]), np.vstack([jr, pj])
 
 
-def _solve(family, obs, priors, theta0, lo, hi, noise, give_up=None) -> tuple[np.ndarray, float]:
+def _solve(family, obs, priors, theta0, lo, hi, noise, give_up=None) -> tuple[np.ndarray, float, int]:
     return levenberg_marquardt(lambda theta: _stacked(family, theta, obs, priors, noise), theta0, lo, hi,
                                COST_TOLERANCE, give_up=give_up)
 
@@ -208,6 +224,29 @@ def _evidence(family, theta, obs, priors, noise, noise_floor, tau_log=None) -> F
 
 def _log_z(family, log_posterior: float, log_det: float) -> float:
     return log_posterior + 0.5 * family.size * math.log(2.0 * math.pi) - 0.5 * log_det + math.lgamma(family.k + 1)
+
+
+def assimilated(fit: Fit, obs: Observations, priors: Priors) -> Fit:
+    """The fit brought up to all readings by one Kalman step each (the Laplace posterior updated with
+    the reading's linearisation: what a refit would do, for O(d²) a reading), its evidence by each
+    reading's predictive density. A refit now and then corrects what linearising misses."""
+    theta, cov = fit.theta.copy(), fit.cov.copy()
+    log_z, log_det = fit.log_evidence, fit.log_det
+    lo, hi = priors.bounds(fit.family)
+    for i in range(fit.n, obs.n):
+        if obs.kind[i] != EXACT:
+            continue
+        f, jac = shapes.evaluate(fit.family, theta, obs.xy[i:i + 1])
+        g = jac[0]
+        noise_var = obs.sd[i] ** 2 + fit.noise_sd**2
+        spread = cov @ g
+        total = float(g @ spread) + noise_var
+        innovation = obs.y[i] - float(f[0])
+        theta = np.clip(theta + spread * innovation / total, lo, hi)
+        cov -= np.outer(spread, spread) / total
+        log_z -= 0.5 * (innovation**2 / total + math.log(2.0 * math.pi * total))
+        log_det += math.log(total / noise_var)
+    return replace(fit, theta=theta, cov=cov, log_evidence=log_z, log_det=log_det, n=obs.n)
 
 
 def refreshed(fit: Fit, obs: Observations, priors: Priors) -> Fit:

@@ -44,10 +44,11 @@ def kernel(a: np.ndarray, b: np.ndarray, hyper: Hyper) -> np.ndarray:
 
 
 def kernel_to_grid(p: np.ndarray, grid_xy: np.ndarray, hyper: Hyper) -> np.ndarray:
-    """kernel(p, grid) for one point, without the n×G distance matrix product."""
-    r = np.hypot(grid_xy[:, 0] - p[0], grid_xy[:, 1] - p[1]) * (SQRT5 / hyper.length_mm)
-    plane = hyper.level_var + hyper.slope_var * (grid_xy @ p) / hyper.scale_mm**2
-    return hyper.signal_var * (1.0 + r + r * r / 3.0) * np.exp(-r) + plane
+    """kernel(p, grid) for one point, without the n×G distance matrix product (float32: V is float32 too)."""
+    grid = grid_xy.astype(np.float32) if grid_xy.dtype != np.float32 else grid_xy
+    r = np.hypot(grid[:, 0] - np.float32(p[0]), grid[:, 1] - np.float32(p[1])) * np.float32(SQRT5 / hyper.length_mm)
+    plane = np.float32(hyper.level_var) + np.float32(hyper.slope_var / hyper.scale_mm**2) * (grid @ p.astype(np.float32))
+    return np.float32(hyper.signal_var) * (1.0 + r + r * r / np.float32(3.0)) * np.exp(-r) + plane
 
 
 def prior_var(grid_xy: np.ndarray, hyper: Hyper) -> np.ndarray:
@@ -63,6 +64,7 @@ class IncrementalGP:
 
     def __init__(self, grid_xy: np.ndarray, hyper: Hyper) -> None:
         self.grid_xy = np.ascontiguousarray(grid_xy, dtype=float)
+        self._grid32 = self.grid_xy.astype(np.float32)
         self.hyper = hyper
         self.xy = np.empty((0, 2))
         self.y = np.empty(0)
@@ -143,7 +145,7 @@ class IncrementalGP:
         self._L[i, :i], self._L[i, i] = row, d
         self._log_det += math.log(d)
         self._w[i] = (self.y[i] - h.mean - float(row @ self._w[:i])) / d
-        v = kernel_to_grid(p[0], self.grid_xy, h)
+        v = kernel_to_grid(p[0], self._grid32, h).astype(np.float64)
         if i:
             v -= self._project(row)
         v /= d

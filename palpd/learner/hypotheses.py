@@ -62,43 +62,65 @@ class Hypotheses:
 
     def update(self, obs: Observations, regions: list[Region], tissue_log: float) -> None:
         """Refit every parametric hypothesis worth trying on the readings so far."""
+        for _ in self.refits(obs, regions, tissue_log):
+            pass
+
+    def refits(self, obs: Observations, regions: list[Region], tissue_log: float, max_starts: int | None = None):
+        """A pass over the hypotheses, one refit per step (a generator yielding each step's work, so that
+        a pass can be spread over updates): none; k circles while the last leaves a reading
+        unexplained; ellipses for the best count (and one fewer: an elongated lump can look like two
+        circles)."""
         priors = self.priors(obs)
         self.tissue_log = tissue_log
-        fits = {"none": self._fit(shapes.Family("circles", 0, priors.scale_mm), obs, priors, list)}
-        best_k, prev = 0, fits["none"]
+        seen = ["none"]
+        self.fits["none"] = self._fit(shapes.Family("circles", 0, priors.scale_mm), obs, priors, list, max_starts)
+        yield self.fits["none"].work
+        best_k = 0
         for k in range(1, MAX_LUMPS + 1):  # one lump more while the last fit leaves a reading unexplained
+            prev = self.fits[self._name_of(k - 1)]
             if not self._unexplained(prev, obs).any():
                 break
             family = shapes.Family("circles", k, priors.scale_mm)
-            fit = self._fit(family, obs, priors, lambda: self._circle_starts(prev, obs, regions, k, priors))
+            fit = self._fit(family, obs, priors, lambda: self._circle_starts(prev, obs, regions, k, priors),
+                            max_starts)
             if fit is None:
                 break
-            fits[fit.name] = fit
-            if fit.supported and fit.log_evidence > fits[self._name_of(best_k)].log_evidence:
+            self.fits[fit.name] = fit
+            seen.append(fit.name)
+            best = self.fits[self._name_of(best_k)]
+            if fit.supported and fit.log_evidence > best.log_evidence:
                 best_k = k
-            prev = fit
-        # An elongated lump can look like two circles, so one lump fewer too while counts are small.
+            yield fit.work
         for k in range(max(1, best_k - 1 if best_k <= 2 else best_k), best_k + 1):
-            circles = fits.get(f"circles:{k}")
+            circles = self.fits.get(f"circles:{k}")
             if circles is not None and circles.supported:
                 family = shapes.Family("ellipses", k, priors.scale_mm)
-                fit = self._fit(family, obs, priors, lambda: self._ellipse_starts(circles, regions))
+                fit = self._fit(family, obs, priors, lambda: self._ellipse_starts(circles, regions), max_starts)
                 if fit is not None:
-                    fits[fit.name] = fit
-        self.fits = fits
+                    self.fits[fit.name] = fit
+                    seen.append(fit.name)
+                yield 0 if fit is None else fit.work
+        self.fits = {name: self.fits[name] for name in seen}
+
+    def assimilate(self, obs: Observations) -> None:
+        """Every hypothesis takes the readings since its fit by a Kalman step each (see evidence.py)."""
+        priors = self.priors(obs)
+        for name, old in list(self.fits.items()):
+            self.fits[name] = evidence.assimilated(old, obs, priors)
 
     @staticmethod
     def _name_of(k: int) -> str:
         return "none" if k == 0 else f"circles:{k}"
 
-    def _fit(self, family, obs, priors, new_starts) -> Fit | None:
+    def _fit(self, family, obs, priors, new_starts, max_starts: int | None = None) -> Fit | None:
         """Refit from where the hypothesis was; from fresh starts too when it is new, when the readings
         since surprised it, or every RESTART_EVERY readings (a warm start can sit in a poor optimum)."""
         old = self.fits.get(family.name)
         starts = [] if old is None else [old.theta]
         contender = self.weights.get(family.name, 0.0) >= CONTENDER_WEIGHT
         if old is None or obs.n % RESTART_EVERY == 0 or (contender and self._surprised(old, obs)):
-            starts += new_starts() + ([] if old is None else _resized(old))
+            starts += new_starts() + ([] if old is None or not contender else _resized(old))
+        starts = starts[:max_starts]
         if family.k == 0:
             starts = [np.array([priors.level, 0.0, 0.0])] + starts
         if not starts:
@@ -125,7 +147,7 @@ class Hypotheses:
 
     def _stiff_clusters(self, obs: Observations, k: int) -> list[list[np.ndarray]]:
         """k lumps over the readings clearly above the tissue, grouped by k-means: each over its group's
-        centroid, reaching halfway to the nearest soft reading (and a smaller variant)."""
+        centroid, reaching most of the way to the nearest soft reading."""
         excess = obs.y - self.tissue_log
         stiff = (excess > math.log1p(self.min_contrast)) & (obs.kind >= 0)
         if np.count_nonzero(stiff) < k:
@@ -142,7 +164,7 @@ class Hypotheses:
             outer = _nearest(centre, obs.xy[~stiff]) if (~stiff).any() else inner + 0.25 * max(self.size_mm)
             contrast = max(math.expm1(float(np.median(excess[stiff][labels == j]))), self.min_contrast * 1.2)
             lumps.append((centre, max(0.5 * (inner + outer), inner, 0.6), contrast))
-        return [[shapes.make_lump(c, r * f, START_SHARPNESS, a) for c, r, a in lumps] for f in (1.0, 0.7)]
+        return [[shapes.make_lump(c, 0.85 * r, START_SHARPNESS, a) for c, r, a in lumps]]
 
     def _excess(self, fit: Fit, obs: Observations) -> tuple[np.ndarray, np.ndarray]:
         """Each exact reading above the fit, in units of its noise at the floor (the fit's own σ_w may
@@ -155,7 +177,8 @@ class Hypotheses:
         return self._excess(fit, obs)[0] > evidence.SUPPORT_SIGMA
 
     def _new_lumps(self, fit: Fit, obs: Observations) -> list[np.ndarray]:
-        """A lump at each of the two readings the fit explains worst, at two sizes."""
+        """A lump at each of the two readings the fit explains worst, reaching most of the way to the
+        nearest reading it does explain."""
         excess, f = self._excess(fit, obs)
         explained = np.abs(excess) < evidence.SUPPORT_SIGMA
         lumps, used = [], []
@@ -165,8 +188,7 @@ class Hypotheses:
             used.append(obs.xy[i])
             reach = _nearest(obs.xy[i], obs.xy[explained]) if explained.any() else 0.25 * max(self.size_mm)
             contrast = max(math.expm1(obs.y[i] - f[i]), self.min_contrast * 1.2)
-            for radius in (0.5 * reach, 0.9 * reach):
-                lumps.append(shapes.make_lump(obs.xy[i], max(radius, 0.6), START_SHARPNESS, contrast))
+            lumps.append(shapes.make_lump(obs.xy[i], max(0.7 * reach, 0.6), START_SHARPNESS, contrast))
             if len(used) == 2:
                 break
         return lumps

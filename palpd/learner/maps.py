@@ -27,7 +27,7 @@ class PosteriorGrid:
 
 def parametric(fit, xs: np.ndarray, ys: np.ndarray, grid_xy: np.ndarray) -> PosteriorGrid:
     f, jac = shapes.evaluate(fit.family, fit.theta, grid_xy)
-    var = np.einsum("ij,jk,ik->i", jac, fit.cov, jac)
+    var = ((jac @ fit.cov) * jac).sum(axis=1)
     p = inside_probability(fit, grid_xy)
     return _grid(xs, ys, f, var, p)
 
@@ -50,7 +50,7 @@ def inside_probability(fit, xy: np.ndarray) -> np.ndarray:
         part = family.lump_slice(j)
         lr2, d = shapes.log_rho2(fit.theta[part], xy[rows], family.kind == "ellipses")
         cov = fit.cov[part, part][: d.shape[1], : d.shape[1]]
-        sd = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", d, cov, d), 1e-12))
+        sd = np.sqrt(np.maximum(((d @ cov) * d).sum(axis=1), 1e-12))
         p[rows] = ndtr(-lr2 / sd)
     return p
 

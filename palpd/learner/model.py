@@ -20,9 +20,12 @@ from palpd.learner.hypotheses import Hypotheses
 from palpd.learner.observations import EXACT, Observations
 from palpd.learner.threshold import free_form_levels, lump_points, supervised_levels, tau_field
 
-REFIT_FLOPS = 2.5e8  # a one-block refit costs n²·G; beyond this the kernel learned so far is kept (no spikes)
-HYPER_POINTS = 150  # the kernel is learned from at most this many readings, evenly spread over the arrival order
+REFIT_FLOPS = 1.2e8  # a one-block refit costs n²·G; beyond this the kernel learned so far is kept (no spikes)
+HYPER_POINTS = 60  # the kernel is learned from at most this many readings, evenly spread over the arrival order
 CENSORED_SD = 0.25  # log sd the free-form map gives a bound, read as a reading at the bound
+FULL_UPDATE_POINTS = 60  # every hypothesis refitted every update up to this many readings
+LIGHT_STARTS = 2  # beyond, a refit tries at most this many starts...
+REFITS_PER_DOUBLING = 30  # ...and there are this many refits while the readings double (one every n/30 readings)
 
 
 class Learner(Decision):
@@ -50,6 +53,8 @@ class Learner(Decision):
         self.probed: list[tuple[float, float]] = []
         self.choice = None
         self._fitted_at = 0
+        self._pass = None  # the pass of refits under way (many readings: one step per update)
+        self._regions = []
         self._cache: dict = {}
 
     # -- learning -------------------------------------------------------------------------------
@@ -94,14 +99,33 @@ class Learner(Decision):
         return supervised_levels(k, self.supervised_tau_n_per_mm)
 
     def _weigh(self) -> None:
+        """Refit and weigh the hypotheses: a whole pass (hypotheses.refits) every update while readings
+        are few; beyond FULL_UPDATE_POINTS every hypothesis assimilates each new reading (a Kalman step)
+        and the pass goes on one refit every n/REFITS_PER_DOUBLING readings, from at most LIGHT_STARTS
+        starts: bounded work per update, the fits still revisited as often as the data double."""
+        n = self.obs.n
+        if n <= FULL_UPDATE_POINTS or self.choice is None:
+            self.hypotheses.update(self.obs, self._find_regions(), self._tissue_log())
+            self._pass = None
+        else:
+            self.hypotheses.assimilate(self.obs)
+            if n % max(1, n // REFITS_PER_DOUBLING) == 0 and next(self._pass or iter(()), None) is None:
+                self._pass = self.hypotheses.refits(self.obs, self._find_regions(), self._tissue_log(), LIGHT_STARTS)
+                next(self._pass)
+        self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None)
+
+    def _tissue_log(self) -> float:
+        return math.log(self._levels().tissue_n_per_mm)
+
+    def _find_regions(self) -> list:
+        """The free-form map's regions backed by a stiff reading: starts for the parametric fits."""
         lv = self._levels()
-        grid_map = self.free_form_map(lv)
         exact = self.obs.exact
         k = np.exp(self.obs.y[exact])
         stiff = lump_points(k, k * self.obs.sd[exact], lv)
-        regions = free_form.regions_of(grid_map, self.obs.xy[exact][stiff], k[stiff], lv.tissue_n_per_mm)
-        self.hypotheses.update(self.obs, regions, math.log(lv.tissue_n_per_mm))
-        self.choice = self.hypotheses.choice(self._free_form_evidence() if regions else None)
+        self._regions = free_form.regions_of(self.free_form_map(lv), self.obs.xy[exact][stiff], k[stiff],
+                                             lv.tissue_n_per_mm)
+        return self._regions
 
     def _free_form_evidence(self) -> float:
         """log evidence of the free-form map: its marginal likelihood, less BIC's price of its two kernel parameters."""

@@ -10,13 +10,14 @@ import numpy as np
 
 
 def levenberg_marquardt(fun, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, tolerance: float,
-                        max_iter: int = 60, give_up: tuple[int, float] | None = None) -> tuple[np.ndarray, float]:
+                        max_iter: int = 60, give_up: tuple[int, float] | None = None) -> tuple[np.ndarray, float, int]:
     """Minimise ½|r(x)|² within the box [lo, hi]; fun(x) returns (r, Jacobian). Done when an
     accepted step gains less than `tolerance` (the cost's units) or barely moves. `give_up`
     (iterations, cost): stop early a start still above that cost after that many iterations.
-    Returns the point and its cost."""
+    Returns the point, its cost and how many times `fun` was called."""
     x = x0.copy()
     r, jac = fun(x)
+    calls = 1
     cost = 0.5 * float(r @ r)
     damping = 1e-3
     for iteration in range(max_iter):
@@ -31,6 +32,7 @@ def levenberg_marquardt(fun, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, tol
             continue
         trial = np.clip(x + step, lo, hi)
         r_new, jac_new = fun(trial)
+        calls += 1
         new_cost = 0.5 * float(r_new @ r_new)
         if np.isfinite(new_cost) and new_cost < cost:
             done = cost - new_cost <= tolerance or np.max(np.abs(trial - x)) < 1e-9
@@ -42,4 +44,4 @@ def levenberg_marquardt(fun, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, tol
             damping *= 4.0
             if damping > 1e10:
                 break
-    return x, cost
+    return x, cost, calls
