@@ -32,7 +32,7 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     # Heavy imports here, not at the top: `palpd --help` and argument errors stay fast.
-    from drivers.sim.scene import load_scene, truth_lumps
+    from drivers.sim.scene import load_scene
     from palpd import metrics
     from palpd.control.remote import open_servo_bench
     from palpd.scan import plan, run_scan
@@ -59,7 +59,7 @@ def run(args) -> int:
         report = {"scene": scene.name, **run_scan(bench, settings, planner, _progress_printer(args))}
     finally:
         bench.servo.close()
-    truth = truth_lumps(scene)
+    truth = metrics.scene_truth(scene, settings.scan.min_contrast)
     report["truth"] = {"lumps": truth}
     report["metrics"] = metrics.compare(truth, report["lumps"])
     _say(args, _summary(report), always=True)

@@ -15,7 +15,7 @@ import numpy as np
 
 from palpd.estimate import LumpEstimate
 from palpd.learner import acquisition, coverage, describe, shapes
-from palpd.learner.evidence import Fit
+from palpd.learner.evidence import ADEQUATE_NOISE, Fit
 from palpd.learner.lumps import find_lumps
 from palpd.learner.threshold import lump_points
 
@@ -23,7 +23,6 @@ MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model'
 MIN_WEIGHT = 0.01  # hypotheses below this weight are left out of the disagreement
 MAX_RIVALS = 4
 CANDIDATE_STRIDE_MM = 1.0  # probes are chosen on a lattice at least this fine
-ADEQUATE_NOISE = 2.0  # the chosen hypothesis may need at most this multiple of the reading noise floor
 
 
 class Decision:

@@ -36,6 +36,7 @@ from palpd.learner.observations import EXACT, Observations
 from palpd.learner.threshold import FALSE_LUMP_RATE
 
 SUPPORT_SIGMA = 3.0
+ADEQUATE_NOISE = 2.0  # σ_w beyond this multiple of the floor: the model misses something (decision.py)
 MAX_AXIS_RATIO = 8.0
 EDGE_SHARPNESS = (1.5, 60.0)
 MAX_CONTRAST = 999.0
@@ -265,9 +266,10 @@ def _gaussian_prior_norm(family) -> float:
 
 def supported(family: shapes.Family, theta: np.ndarray, obs: Observations, noise: float,
               tau_log: float | None = None) -> bool:
-    """Every lump changes some exact reading's prediction by SUPPORT_SIGMA of its noise at the floor
-    (not the fit's own σ_w, which an unexplained lump elsewhere inflates), and, with a supervised τ,
-    is felt at some reading surely above τ."""
+    """Every lump is felt at some exact reading: it is the lump felt most there, and taking it away
+    changes the prediction by SUPPORT_SIGMA of that reading's noise at the floor (`noise`; not the
+    fit's own σ_w, which an unexplained lump elsewhere inflates); with a supervised τ, the reading is
+    surely above τ."""
     if family.k == 0:
         return True
     exact = obs.exact
