@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")  # files only; the daemon has no screen
 import matplotlib.pyplot as plt  # noqa: E402
@@ -26,12 +27,12 @@ def plot_scan(report: dict, size_mm: tuple[float, float], path: str | Path) -> N
     if failed:
         ax.scatter(*zip(*failed), marker="x", c="k", s=30, label="no fit", zorder=3)
     for i, true in enumerate(report.get("truth", {}).get("lumps", [])):
-        ax.add_patch(Circle(true["center_mm"], true["radius_mm"], fill=False, ec="k", lw=1.5,
-                            label="true lump" if i == 0 else None))
-    for i, lump in enumerate(report["lumps"]):
-        bx, by = zip(*lump["boundary_mm"])
-        ax.plot(bx, by, color="m", lw=2, label="estimated lump" if i == 0 else None)
-        ax.plot(*lump["center_mm"], "m+", ms=10, mew=2)
+        label = "true lump" if i == 0 else None
+        if true.get("boundary_mm"):  # a measured map's region
+            ax.plot(*np.asarray(true["boundary_mm"]).T, color="k", lw=1.5, label=label)
+        else:
+            ax.add_patch(Circle(true["center_mm"], true["radius_mm"], fill=False, ec="k", lw=1.5, label=label))
+    draw_chosen_lumps(ax, report)
     ax.set(xlim=(-half_w - 5, half_w + 5), ylim=(-half_h - 5, half_h + 5), aspect="equal",
            xlabel="x (mm)", ylabel="y (mm)", title=_title(report))
     if ax.get_legend_handles_labels()[0]:
@@ -44,8 +45,31 @@ def plot_scan(report: dict, size_mm: tuple[float, float], path: str | Path) -> N
         plt.close(fig)
 
 
+def draw_chosen_lumps(ax, report: dict) -> None:
+    """The lumps of the hypothesis the evidence chose, each with its uncertainty: the boundary as
+    reported (a circle, an ellipse or the free-form contour), a band from 2 sd inside to 2 sd outside
+    it (its radius sd), and a 2-sd circle around the centre (its centre sd)."""
+    model = report.get("model") or {}
+    for i, lump in enumerate(report["lumps"]):
+        boundary = np.asarray(lump["boundary_mm"], dtype=float)
+        centre = np.asarray(lump["center_mm"], dtype=float)
+        spread = 2.0 * lump["radius_sd_mm"] / max(lump["radius_mm"], 1e-9)
+        outer = centre + (boundary - centre) * (1.0 + spread)
+        inner = centre + (boundary - centre) * max(1.0 - spread, 0.0)
+        band = np.vstack([outer, inner[::-1]])
+        ax.fill(band[:, 0], band[:, 1], color="m", alpha=0.18, lw=0,
+                label="±2 sd" if i == 0 else None)
+        ax.plot(boundary[:, 0], boundary[:, 1], color="m", lw=2,
+                label=f"chosen: {model.get('chosen', 'estimate')}" if i == 0 else None)
+        ax.add_patch(Circle(centre, 2.0 * lump["center_sd_mm"], fill=False, ec="m", lw=1, ls="--"))
+        ax.plot(*centre, "m+", ms=10, mew=2)
+
+
 def _title(report: dict) -> str:
     title = f"{report.get('scene', '')} — {report['strategy']}, {report['palpations']} palpations"
+    model = report.get("model")
+    if model:
+        title += f", {report.get('verdict', '')}: {model['chosen']} (weight {model['weight']:.2f})"
     metrics = report.get("metrics")
     if metrics and metrics.get("max_center_error_mm") is not None:
         title += f"\ncentre error {metrics['max_center_error_mm']:.2f} mm, radius error {metrics['max_radius_error_mm']:.2f} mm"

@@ -6,8 +6,8 @@ while the rest of it is unexplored: the posterior is then many circles, not the
 one Gaussian the approximation draws. A lump counts as pinned only when it has
 been felt from inside (a reading within CONFIRM_RHO of its centre, in units of
 its boundary, or within the probe spacing of a lump smaller than that) and its
-edge band (where its profile is between 5 % and 95 % of its height, widened by
-the probe spacing) holds readings all around: no gap of a third of a turn or
+edge band (where its profile is between 10 % and 90 % of its height, widened by
+the probe spacing) holds readings on every side: no gap of a third of a turn or
 more between them, around its own axes; the part of the edge outside the
 palpable area needs none. These say where to probe first.
 """
@@ -20,8 +20,8 @@ import numpy as np
 from palpd.learner import shapes
 
 CONFIRM_RHO = 0.6
-EDGE_LEVEL = math.log(19.0)  # the edge band: where the lump's profile is between 5 % and 95 % of its height
-MAX_GAP_RAD = 2.0 * math.pi / 3.0
+EDGE_LEVEL = math.log(9.0)  # the edge band: where the lump's profile is between 10 % and 90 % of its height
+MAX_GAP_RAD = 2.0 * math.pi / 3.0  # no third of a turn of edge unread
 OUTSIDE_STEPS = 36
 
 

@@ -79,9 +79,20 @@ class Decision:
     def _choice_made(self) -> bool:
         """Enough readings, a confident choice, and the chosen hypothesis explains them to their precision
         (a model that needs far more noise than readings have is the best of a bad lot, not an answer)."""
-        if self.choice is None or self.obs.n < MIN_READINGS or self.choice.weight < self.settings.confidence:
+        if self.choice is None or self.choice.weight < self.settings.confidence or not self._enough_spots():
             return False
         return self._adequate()
+
+    def _enough_spots(self) -> bool:
+        """MIN_READINGS readings at distinct spots (at least the probe spacing apart): the same spot
+        read again and again is not evidence about the rest of the tissue."""
+        spots: list = []
+        for xy in self.obs.xy:
+            if all(math.dist(xy, s) >= self.settings.min_spacing_mm for s in spots):
+                spots.append(xy)
+                if len(spots) >= MIN_READINGS:
+                    return True
+        return False
 
     def _adequate(self) -> bool:
         return self._chosen_noise_sd() <= ADEQUATE_NOISE * self.noise_floor

@@ -2,7 +2,7 @@
 
 The priors are stated, proper and the same for every scene: a lump's centre
 anywhere over the tissue or overlapping it, its radius log-uniform from 0.5 mm
-to the tissue's size, its edge sharpness log-uniform, its tail shape uniform
+to half the tissue's longer side (most of it), its edge sharpness log-uniform, its tail shape uniform
 (power-law to Gaussian, shapes.py), its contrast log-uniform
 from `min_contrast` (the softest difference that counts as a lump) to 1000×,
 an ellipse's log axis ratio up to log 8. The evidence is
@@ -38,9 +38,10 @@ from palpd.learner.threshold import FALSE_LUMP_RATE
 SUPPORT_SIGMA = 3.0
 ADEQUATE_NOISE = 2.0  # σ_w beyond this multiple of the floor: the model misses something (decision.py)
 MAX_AXIS_RATIO = 8.0
-EDGE_SHARPNESS = (1.5, 60.0)
+EDGE_SHARPNESS = (2.0, 60.0)
 MAX_CONTRAST = 999.0
 MIN_RADIUS_MM = 0.5
+MAX_RADIUS_FRACTION = 0.5  # of the tissue's longer side: a disc that size covers most of it; a region larger still is free-form
 LEVEL_SD, SLOPE_SD = 2.0, 0.25  # background prior: log level around the readings' median; log change per half-size
 OVERLAP_MM = 0.25
 HOPELESS = 30.0  # nats: a start this far below the best one's height is dropped (after GIVE_UP_AFTER steps)
@@ -65,7 +66,7 @@ class Priors:
     def _lump_box(self, ellipse: bool) -> list[tuple[float, float]]:
         margin = 0.25 * max(self.size_mm)
         half_w, half_h = self.size_mm[0] / 2 + margin, self.size_mm[1] / 2 + margin
-        box = [(-half_w, half_w), (-half_h, half_h), (math.log(MIN_RADIUS_MM), math.log(max(self.size_mm)))]
+        box = [(-half_w, half_w), (-half_h, half_h), (math.log(MIN_RADIUS_MM), math.log(MAX_RADIUS_FRACTION * max(self.size_mm)))]
         if ellipse:
             e = math.log(MAX_AXIS_RATIO)
             box += [(-e, e), (-e, e)]

@@ -30,7 +30,7 @@ import numpy as np
 BACKGROUND_PARAMS = 3
 CIRCLE_PARAMS = 6
 ELLIPSE_PARAMS = 8
-TAIL_RANGE = (0.0, 4.0)
+TAIL_RANGE = (0.0, 1.5)
 TINY = 1e-12
 
 
@@ -123,16 +123,21 @@ def _heights(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, jacobian: bool):
 
 
 def _log_h(log_u: np.ndarray, tail: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """t = log h for u = e^log_u, with dt/dlog u and dt/dλ (the Hill limit's series near λ = 0)."""
-    u = np.exp(log_u)
-    small = tail < 1e-4
-    lam = np.where(small, 1.0, tail)
-    x = lam * u
-    log_expm1_x = np.where(x > 1e-8, x + np.log1p(-np.exp(-np.maximum(x, 1e-8))), np.log(np.maximum(x, 1e-300)))
-    one_minus = -np.expm1(-np.maximum(x, 1e-300))  # 1 − e^{−x}
-    t = np.where(small, log_u + tail * (u - 1.0) / 2.0, log_expm1_x - np.log(np.expm1(lam)))
-    dt_dlog_u = np.where(small, 1.0 + tail * u / 2.0, x / np.maximum(one_minus, 1e-300))
-    dt_dtail = np.where(small, (u - 1.0) / 2.0, u / np.maximum(one_minus, 1e-300) - 1.0 / -np.expm1(-lam))
+    """t = log h for u = e^log_u (n × k), with dt/dlog u and dt/dλ; the Hill limit (λ = 0) by its series."""
+    t, dt_dlog_u, dt_dtail = np.empty_like(log_u), np.empty_like(log_u), np.empty_like(log_u)
+    for j, lam in enumerate(tail):  # one branch per lump, never both on every point
+        lu = log_u[:, j]
+        u = np.exp(lu)
+        if lam < 1e-4:
+            t[:, j] = lu + lam * (u - 1.0) / 2.0
+            dt_dlog_u[:, j] = 1.0 + lam * u / 2.0
+            dt_dtail[:, j] = (u - 1.0) / 2.0
+            continue
+        x = np.maximum(lam * u, 1e-300)
+        one_minus = -np.expm1(-x)  # 1 − e^{−x}
+        t[:, j] = np.where(x > 1e-8, x + np.log(np.maximum(one_minus, 1e-300)), np.log(x)) - math.log(math.expm1(lam))
+        dt_dlog_u[:, j] = x / np.maximum(one_minus, 1e-300)
+        dt_dtail[:, j] = u / np.maximum(one_minus, 1e-300) + 1.0 / math.expm1(-lam)
     return t, dt_dlog_u, dt_dtail
 
 
