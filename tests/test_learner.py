@@ -111,29 +111,28 @@ def test_no_evidence_is_never_none_but_undetermined_when_the_budget_runs_out():
     assert learner.next_probe(12) is None and learner.verdict() == "undetermined" and learner.lumps() == []
 
 
-def test_very_noisy_sensor_invents_nothing():
-    learner = learn(field([]), noise=0.05, budget=60)
-    assert learner.lumps() == []
-    truth = [((0.0, 0.0), 10.0, 2.0, 0.8)]
-    assert_sane(learn(field(truth), noise=0.05, budget=60), truth)
+def test_very_noisy_readings_invent_nothing():
+    learner = learn(field([]), noise=0.05, budget=30, grid=21)
+    assert learner.lumps() == [] and learner.verdict() in ("none", "undetermined")
 
 
 def test_censored_readings_are_bounds_not_missing_data():
-    """A stiff lump whose readings hit the force limit: each is only 'at least 0.3 N/mm'. As bounds
-    they still make the lump, and its contrast comes out above the bound, not at it."""
-    k_at = field([((5.0, -3.0), 9.0, 2.0, 3.0)])
-    learner = Learner((60.0, 60.0), LearnerSettings(grid_points=61), 0.3, 0)
-    while (xy := learner.next_probe(40)) is not None:
+    """A lump whose core readings hit the force limit: each is only 'at least 0.6 N/mm'. Kept as bounds
+    they pin the lump as well as readings would, and its stiffness comes out above the bound."""
+    k_at = field([((5.0, -3.0), 9.0, 2.0, 0.8)])
+    learner = Learner((60.0, 60.0), LearnerSettings(grid_points=21), 0.3, 0)
+    while (xy := learner.next_probe(30)) is not None:
         k = k_at(xy)
-        if k >= 0.3:
-            learner.observe(xy, None, outcome="too_stiff", bound_n_per_mm=0.3)
+        if k >= 0.6:
+            learner.observe(xy, None, outcome="too_stiff", bound_n_per_mm=0.6)
         else:
             learner.observe(xy, k, 0.0004)
+    assert np.count_nonzero(learner.obs.kind == 1) >= 2  # the bounds were kept, as lower bounds
     assert learner.model()["chosen"] == "circles:1"
     (lump,) = learner.lumps()
     assert math.dist(lump.center_mm, (5.0, -3.0)) <= 1.0 and abs(lump.radius_mm - 9.0) <= 1.0
     fit = learner.chosen_fit()
-    assert TISSUE * (1.0 + math.exp(fit.theta[-1])) > 0.3  # the lump's stiffness: beyond every bound
+    assert TISSUE * (1.0 + math.exp(fit.theta[-1])) > 0.6  # the lump's stiffness: beyond every bound
 
 
 def test_a_too_soft_bound_keeps_a_spot_out_of_a_lump():
@@ -169,19 +168,19 @@ def test_palpations_without_stiffness_count_but_teach_nothing():
 
 
 def test_the_posterior_grid_is_the_chosen_model_s_map():
-    learner = learn(field([((7.5, -4.0), 10.0, 3.0, 0.8)]))
+    learner = learn(field([((7.5, -4.0), 10.0, 3.0, 0.8)]), grid=31)
     grid = learner.posterior_grid()
     assert grid.mean.shape == grid.sd.shape == grid.p_lump.shape == (len(grid.ys), len(grid.xs))
     inside = np.hypot(*np.meshgrid(grid.xs - 7.5, grid.ys + 4.0)) < 8.0
     assert grid.p_lump[inside].min() > 0.9 and grid.mean[inside].min() > 0.5 and np.all(grid.sd >= 0)
 
 
-@hsettings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@hsettings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(lumps=st.lists(st.tuples(st.tuples(st.floats(-30, 30), st.floats(-30, 30)), st.floats(2.0, 25.0),
                                 st.floats(0.5, 6.0), st.floats(0.05, 120.0)), max_size=2),
        noise=st.sampled_from([0.0, 0.002, 0.03]), seed=st.integers(0, 5))
 def test_any_field_gives_a_sane_map(lumps, noise, seed):
-    learner = learn(field(lumps), budget=14, noise=noise, seed=seed, grid=31)
+    learner = learn(field(lumps), budget=10, noise=noise, seed=seed, grid=21)
     p = learner.p_lump()
     assert p is None or (np.all(np.isfinite(p)) and p.min() >= 0 and p.max() <= 1)
     assert learner.verdict() in ("lumps", "none", "undetermined")

@@ -1,10 +1,10 @@
 """Lumps from the learner's map: connected regions where P(lump) > 0.5.
 
 Each region that an observed stiff point supports (the model alone never makes
-a lump) becomes a lump with its 50 % boundary as a closed polygon, a centre and
-radius from a circle fitted to that boundary (only its part inside the palpable
-area, so a lump cut by the edge keeps its true radius), and their uncertainties
-from how well the boundary is pinned down: σ/|∇μ| across it.
+a lump) becomes a lump with its 50 % boundary as a closed polygon, its centroid
+and equal-area radius (a free-form region has no circle to report), and
+uncertainties from how well the boundary is pinned down: σ/|∇μ| across it,
+through a circle fitted to the boundary.
 """
 from __future__ import annotations
 
@@ -98,9 +98,12 @@ def _one_lump(m: Map, region: np.ndarray, others: np.ndarray) -> LumpEstimate | 
         return None
     inside = _off_edge(m, polygon[:-1])
     fit_points = inside if len(inside) >= 5 else polygon[:-1]
-    centre, radius, jac = _circle_fit(fit_points)
-    centre_sd, radius_sd = _fit_uncertainty(m, fit_points, jac, radius)
-    return LumpEstimate((float(centre[0]), float(centre[1])), float(radius), centre_sd, radius_sd,
+    _, circle_radius, jac = _circle_fit(fit_points)
+    centre_sd, radius_sd = _fit_uncertainty(m, fit_points, jac, circle_radius)
+    # A free-form region has no circle to report: its centroid and equal-area radius (within the area).
+    gx, gy = np.meshgrid(m.xs, m.ys)
+    radius = math.sqrt(np.count_nonzero(region) / math.pi) * m.cell_mm
+    return LumpEstimate((float(gx[region].mean()), float(gy[region].mean())), radius, centre_sd, radius_sd,
                         polygon.tolist())
 
 
