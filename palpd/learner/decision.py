@@ -17,7 +17,7 @@ from palpd.estimate import LumpEstimate
 from palpd.learner import acquisition, coverage, describe, shapes
 from palpd.learner.evidence import ADEQUATE_NOISE, Fit
 from palpd.learner.lumps import find_lumps
-from palpd.learner.threshold import lump_points
+from palpd.learner.threshold import lump_points, surely_above
 
 MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model's parameter count
 MIN_WEIGHT = 0.01  # hypotheses below this weight are left out of the disagreement
@@ -45,12 +45,21 @@ class Decision:
             return []
         fit = self.chosen_fit()
         if fit is not None:
-            return describe.lumps_of(fit, self.supervised_tau_n_per_mm)
+            lumps = describe.lumps_of(fit, self.supervised_tau_n_per_mm)
+            return lumps if self.supervised_tau_n_per_mm is None else [l for l in lumps if self._past_tau(l)]
         exact = self.obs.exact
         k = np.exp(self.obs.y[exact])
         lv = self._levels()
         stiff = lump_points(k, k * self.obs.sd[exact], lv)
         return find_lumps(self.free_form_map(lv), self.obs.xy[exact][stiff])
+
+    def _past_tau(self, lump: LumpEstimate) -> bool:
+        """Supervised: a lump is one only where a reading inside it is surely above the learned τ."""
+        exact = self.obs.exact
+        k = np.exp(self.obs.y[exact])
+        sure = surely_above(k, k * self.obs.sd[exact], self.supervised_tau_n_per_mm)
+        inside = np.hypot(*(self.obs.xy[exact] - np.asarray(lump.center_mm)).T) <= lump.radius_mm
+        return bool(np.any(sure & inside))
 
     def decided(self) -> bool:
         """The stop rule holds: the model choice is confident, each lump is pinned down by readings

@@ -27,13 +27,11 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import numpy as np
-from scipy.special import ndtri
 
 from palpd.learner import shapes
 from palpd.learner.likelihood import log_likelihood, noise_sd_ml, residuals
 from palpd.learner.solver import levenberg_marquardt
 from palpd.learner.observations import EXACT, Observations
-from palpd.learner.threshold import FALSE_LUMP_RATE
 
 SUPPORT_SIGMA = 3.0
 ADEQUATE_NOISE = 2.0  # σ_w beyond this multiple of the floor: the model misses something (decision.py)
@@ -152,7 +150,7 @@ def _overlaps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[np.ndarray],
-        noise_floor: float, noise_sd: float | None = None, tau_log: float | None = None) -> Fit | None:
+        noise_floor: float, noise_sd: float | None = None) -> Fit | None:
     """The mode of the most evidence among those `starts` lead to, with σ_w re-estimated.
 
     Modes are compared by evidence, not by height: two configurations can fit the readings
@@ -182,7 +180,7 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
         noise = new
         theta, _, used = _solve(family, obs, priors, theta, lo, hi, noise)
         calls += used
-    return replace(_evidence(family, theta, obs, priors, noise, noise_floor, tau_log),
+    return replace(_evidence(family, theta, obs, priors, noise, noise_floor),
                    work=calls * (CALL_OVERHEAD + obs.n * family.size))
 
 
@@ -211,7 +209,7 @@ def _log_posterior(family, theta, obs, priors, noise) -> float:
             + priors.log_density(family, theta))
 
 
-def _evidence(family, theta, obs, priors, noise, noise_floor, tau_log=None) -> Fit:
+def _evidence(family, theta, obs, priors, noise, noise_floor) -> Fit:
     r, jac = _stacked(family, theta, obs, priors, noise)
     hessian = jac.T @ jac + np.diag(priors.precision(family))
     sign, logdet = np.linalg.slogdet(hessian)
@@ -221,7 +219,7 @@ def _evidence(family, theta, obs, priors, noise, noise_floor, tau_log=None) -> F
     post = _log_posterior(family, theta, obs, priors, noise) - 0.5 * _gaussian_prior_norm(family)
     cov = np.linalg.pinv(hessian)
     return Fit(family, theta, cov, noise, post, _log_z(family, post, logdet),
-               supported(family, theta, obs, noise_floor, tau_log), obs.n, logdet)
+               supported(family, theta, obs, noise_floor), obs.n, logdet)
 
 
 def _log_z(family, log_posterior: float, log_det: float) -> float:
@@ -265,12 +263,10 @@ def _gaussian_prior_norm(family) -> float:
     return 2.0 * (math.log(LEVEL_SD) + 2.0 * math.log(SLOPE_SD) + 1.5 * math.log(2.0 * math.pi))
 
 
-def supported(family: shapes.Family, theta: np.ndarray, obs: Observations, noise: float,
-              tau_log: float | None = None) -> bool:
+def supported(family: shapes.Family, theta: np.ndarray, obs: Observations, noise: float) -> bool:
     """Every lump is felt at some exact reading: it is the lump felt most there, and taking it away
     changes the prediction by SUPPORT_SIGMA of that reading's noise at the floor (`noise`; not the
-    fit's own σ_w, which an unexplained lump elsewhere inflates); with a supervised τ, the reading is
-    surely above τ."""
+    fit's own σ_w, which an unexplained lump elsewhere inflates)."""
     if family.k == 0:
         return True
     exact = obs.exact
@@ -278,11 +274,9 @@ def supported(family: shapes.Family, theta: np.ndarray, obs: Observations, noise
     total = np.sqrt(obs.sd[exact] ** 2 + noise**2)
     top = np.log1p(heights.max(axis=1))
     felt = np.argmax(heights, axis=1)
-    above = np.ones(len(top), dtype=bool) if tau_log is None else \
-        obs.y[exact] - float(ndtri(1.0 - FALSE_LUMP_RATE / max(len(top), 1))) * obs.sd[exact] > tau_log
     for j in range(family.k):
         others = np.delete(heights, j, axis=1)
         without = np.log1p(others.max(axis=1)) if others.shape[1] else np.zeros(len(top))
-        if not np.any(((top - without) >= SUPPORT_SIGMA * total) & (felt == j) & above):
+        if not np.any(((top - without) >= SUPPORT_SIGMA * total) & (felt == j)):
             return False
     return True

@@ -49,9 +49,8 @@ class Choice:
 
 
 class Hypotheses:
-    def __init__(self, size_mm, min_contrast: float, noise_floor: float, tau_n_per_mm: float | None = None) -> None:
+    def __init__(self, size_mm, min_contrast: float, noise_floor: float) -> None:
         self.size_mm = tuple(size_mm)
-        self.tau_log = None if tau_n_per_mm is None else math.log(tau_n_per_mm)  # supervised: lumps must pass τ
         self.min_contrast = min_contrast
         self.noise_floor = noise_floor
         self.fits: dict[str, Fit] = {}
@@ -125,8 +124,7 @@ class Hypotheses:
             starts = [np.array([priors.level, 0.0, 0.0])] + starts
         if not starts:
             return None
-        return evidence.fit(family, obs, priors, starts, self.noise_floor,
-                            None if old is None else old.noise_sd, self.tau_log)
+        return evidence.fit(family, obs, priors, starts, self.noise_floor, None if old is None else old.noise_sd)
 
     def _surprised(self, old: Fit, obs: Observations) -> bool:
         f, _ = shapes.evaluate(old.family, old.theta, obs.xy[old.n:], jacobian=False)

@@ -47,7 +47,7 @@ class Learner(Decision):
         self.gp = IncrementalGP(self.grid_xy, Hyper(0.0, 1.0, math.sqrt(low * high), self.noise_floor**2,
                                                     scale_mm=0.5 * max(size_mm)))
         self.obs = Observations()
-        self.hypotheses = Hypotheses(size_mm, min_contrast, self.noise_floor, supervised_tau_n_per_mm)
+        self.hypotheses = Hypotheses(size_mm, min_contrast, self.noise_floor)
         self.design = acquisition.initial_design(size_mm, settings.initial_points, seed)
         self.blocked = np.zeros(len(self.grid_xy), dtype=bool)
         self.probed: list[tuple[float, float]] = []
