@@ -39,13 +39,13 @@ MAX_AXIS_RATIO = 8.0
 EDGE_SHARPNESS = (2.0, 60.0)
 MAX_CONTRAST = 999.0
 MIN_RADIUS_MM = 0.5
-MAX_RADIUS_FRACTION = 0.5  # of the tissue's longer side: a disc that size covers most of it; a region larger still is free-form
+MAX_RADIUS_FRACTION = 0.5  # of the tissue's longer side: a disc that covers most of it (larger: free-form)
 LEVEL_SD, SLOPE_SD = 2.0, 0.25  # background prior: log level around the readings' median; log change per half-size
-OVERLAP_MM = 0.25
+OVERLAP_MM = 0.25  # softness of the rule that lumps do not sit inside one another
 HOPELESS = 30.0  # nats: a start this far below the best one's height is dropped (after GIVE_UP_AFTER steps)
 GIVE_UP_AFTER = 8
 CALL_OVERHEAD = 1000  # an evaluation's fixed cost, in residual entries (Python and numpy call overhead)
-COST_TOLERANCE = 1e-4  # nats: a fit is done when a step gains less (evidences differ by whole nats)  # softness of the rule that lumps do not sit inside one another
+COST_TOLERANCE = 1e-4  # nats: a fit is done when a step gains less (evidences differ by whole nats)
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,8 @@ class Priors:
     def _lump_box(self, ellipse: bool) -> list[tuple[float, float]]:
         margin = 0.25 * max(self.size_mm)
         half_w, half_h = self.size_mm[0] / 2 + margin, self.size_mm[1] / 2 + margin
-        box = [(-half_w, half_w), (-half_h, half_h), (math.log(MIN_RADIUS_MM), math.log(MAX_RADIUS_FRACTION * max(self.size_mm)))]
+        radius = (math.log(MIN_RADIUS_MM), math.log(MAX_RADIUS_FRACTION * max(self.size_mm)))
+        box = [(-half_w, half_w), (-half_h, half_h), radius]
         if ellipse:
             e = math.log(MAX_AXIS_RATIO)
             box += [(-e, e), (-e, e)]

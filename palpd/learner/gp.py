@@ -46,8 +46,10 @@ def kernel(a: np.ndarray, b: np.ndarray, hyper: Hyper) -> np.ndarray:
 def kernel_to_grid(p: np.ndarray, grid_xy: np.ndarray, hyper: Hyper) -> np.ndarray:
     """kernel(p, grid) for one point, without the n×G distance matrix product (float32: V is float32 too)."""
     grid = grid_xy.astype(np.float32) if grid_xy.dtype != np.float32 else grid_xy
-    r = np.hypot(grid[:, 0] - np.float32(p[0]), grid[:, 1] - np.float32(p[1])) * np.float32(SQRT5 / hyper.length_mm)
-    plane = np.float32(hyper.level_var) + np.float32(hyper.slope_var / hyper.scale_mm**2) * (grid @ p.astype(np.float32))
+    to_r = np.float32(SQRT5 / hyper.length_mm)
+    r = np.hypot(grid[:, 0] - np.float32(p[0]), grid[:, 1] - np.float32(p[1])) * to_r
+    slope = np.float32(hyper.slope_var / hyper.scale_mm**2)
+    plane = np.float32(hyper.level_var) + slope * (grid @ p.astype(np.float32))
     return np.float32(hyper.signal_var) * (1.0 + r + r * r / np.float32(3.0)) * np.exp(-r) + plane
 
 
