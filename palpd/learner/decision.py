@@ -23,6 +23,7 @@ MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model'
 MIN_WEIGHT = 0.01  # hypotheses below this weight are left out of the disagreement
 MAX_RIVALS = 4
 CANDIDATE_STRIDE_MM = 1.0  # probes are chosen on a lattice at least this fine
+COVERAGE_STEP_MM = 2.0  # how finely the unexplored spots are looked for
 
 
 class Decision:
@@ -62,12 +63,26 @@ class Decision:
         return bool(np.any(sure & inside))
 
     def decided(self) -> bool:
-        """The stop rule holds: the model choice is confident, each lump is pinned down by readings
-        (coverage.py) and what is reported has posterior sd within the tolerance."""
-        if not self._choice_made() or self._unpinned() is not None:
+        """The stop rule holds: the model choice is confident, no spot of the tissue is unexplored,
+        each lump is pinned down by readings (coverage.py) and what is reported has posterior sd within
+        the tolerance."""
+        if not self._choice_made() or self._unexplored() is not None or self._unpinned() is not None:
             return False
         tolerance = self.settings.tolerance_mm
         return all(_sds(lump) <= tolerance for lump in self.lumps())
+
+    def _unexplored(self) -> tuple[float, float] | None:
+        """The spot farthest from every reading, when it is farther than `coverage_mm`: a lump there
+        whose felt footprint is narrower than that could not have shown in any reading yet."""
+        cells = self.grid_xy[self._candidates(COVERAGE_STEP_MM)]
+        readings = self.obs.xy
+        if len(readings) == 0:
+            return None
+        distance = np.full(len(cells), np.inf)
+        for x, y in readings:
+            np.minimum(distance, np.hypot(cells[:, 0] - x, cells[:, 1] - y), out=distance)
+        far = int(np.argmax(distance))
+        return tuple(map(float, cells[far])) if distance[far] > self.settings.coverage_mm else None
 
     def _unpinned(self) -> np.ndarray | None:
         """Where a lump of the chosen parametric model still needs a reading to be pinned down, or None."""
@@ -120,6 +135,9 @@ class Decision:
             return self.design[self.points]
         if self.decided():
             return None
+        unexplored = self._unexplored() if self._choice_made() else None
+        if unexplored is not None:  # all else is decided: look where nothing was read yet
+            return unexplored
         cells = self._candidates()
         score = self._score(cells)
         here = self.probed[-1] if self.probed else None
@@ -127,8 +145,8 @@ class Decision:
                                           self.travel_mm_per_palpation)
         return best if best is not None else self._farthest_from_probes()
 
-    def _candidates(self) -> np.ndarray:
-        step = max(1, int(CANDIDATE_STRIDE_MM / (self.xs[1] - self.xs[0])))
+    def _candidates(self, stride_mm: float = CANDIDATE_STRIDE_MM) -> np.ndarray:
+        step = max(1, int(stride_mm / (self.xs[1] - self.xs[0])))
         rows = np.arange(0, len(self.ys), step)
         cols = np.arange(0, len(self.xs), step)
         return (rows[:, None] * len(self.xs) + cols[None, :]).ravel()
