@@ -74,13 +74,12 @@ class Decision:
     def _unexplored(self) -> tuple[float, float] | None:
         """The spot farthest from every reading, when it is farther than `coverage_mm`: a lump there
         whose felt footprint is narrower than that could not have shown in any reading yet."""
-        cells = self.grid_xy[self._candidates(COVERAGE_STEP_MM)]
-        readings = self.obs.xy
-        if len(readings) == 0:
+        if self.obs.n == 0:
             return None
-        distance = np.full(len(cells), np.inf)
-        for x, y in readings:
-            np.minimum(distance, np.hypot(cells[:, 0] - x, cells[:, 1] - y), out=distance)
+        from scipy.spatial import cKDTree
+
+        cells = self.grid_xy[self._candidates(COVERAGE_STEP_MM)]
+        distance, _ = cKDTree(self.obs.xy).query(cells)
         far = int(np.argmax(distance))
         return tuple(map(float, cells[far])) if distance[far] > self.settings.coverage_mm else None
 
