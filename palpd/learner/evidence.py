@@ -1,7 +1,7 @@
 """One hypothesis fitted to the readings, and its evidence (Laplace approximation of the marginal likelihood).
 
 The priors are stated, proper and the same for every scene: a lump's centre
-anywhere over the tissue or overlapping it, its radius log-uniform from 0.5 mm
+anywhere on the tissue (its disc may reach past it), its radius log-uniform from 0.5 mm
 to half the tissue's longer side (most of it), its edge sharpness log-uniform, its tail shape uniform
 (power-law to Gaussian, shapes.py), its contrast log-uniform
 from `min_contrast` (the softest difference that counts as a lump) to 1000×,
@@ -39,6 +39,7 @@ MAX_AXIS_RATIO = 8.0
 EDGE_SHARPNESS = (2.0, 60.0)
 MAX_CONTRAST = 999.0
 MIN_RADIUS_MM = 0.5
+CENTRE_MARGIN = 0.0  # a lump is centred on the tissue (one centred off it could never be felt from inside)
 MAX_RADIUS_FRACTION = 0.5  # of the tissue's longer side: a disc that covers most of it (larger: free-form)
 LEVEL_SD, SLOPE_SD = 2.0, 0.25  # background prior: log level around the readings' median; log change per half-size
 OVERLAP_MM = 0.25  # softness of the rule that lumps do not sit inside one another
@@ -62,7 +63,7 @@ class Priors:
         return _bounds(self.size_mm, self.min_contrast, family.kind, family.k)
 
     def _lump_box(self, ellipse: bool) -> list[tuple[float, float]]:
-        margin = 0.25 * max(self.size_mm)
+        margin = CENTRE_MARGIN * max(self.size_mm)
         half_w, half_h = self.size_mm[0] / 2 + margin, self.size_mm[1] / 2 + margin
         radius = (math.log(MIN_RADIUS_MM), math.log(MAX_RADIUS_FRACTION * max(self.size_mm)))
         box = [(-half_w, half_w), (-half_h, half_h), radius]
