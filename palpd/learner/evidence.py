@@ -152,7 +152,7 @@ def _overlaps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[np.ndarray],
-        noise_floor: float, noise_sd: float | None = None) -> Fit | None:
+        noise_floor: float, noise_sd: float | None = None, max_iter: int = 60) -> Fit | None:
     """The mode of the most evidence among those `starts` lead to, with σ_w re-estimated.
 
     Modes are compared by evidence, not by height: two configurations can fit the readings
@@ -163,7 +163,7 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
     best, lowest, calls = None, np.inf, 0
     for start in starts:
         theta, cost, used = _solve(family, obs, priors, _inside(start, lo, hi), lo, hi, noise,
-                                   (GIVE_UP_AFTER, lowest + HOPELESS))
+                                   (GIVE_UP_AFTER, lowest + HOPELESS), max_iter)
         lowest, calls = min(lowest, cost), calls + used
         if cost > lowest + HOPELESS:
             continue
@@ -180,7 +180,7 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
         if abs(math.log(new / noise)) < 0.05:
             break
         noise = new
-        theta, _, used = _solve(family, obs, priors, theta, lo, hi, noise)
+        theta, _, used = _solve(family, obs, priors, theta, lo, hi, noise, max_iter=max_iter)
         calls += used
     return replace(_evidence(family, theta, obs, priors, noise, noise_floor),
                    work=calls * (CALL_OVERHEAD + obs.n * family.size))
@@ -198,9 +198,9 @@ def _stacked(family, theta, obs, priors, noise):
     return np.concatenate([r, pr]), np.vstack([jr, pj])
 
 
-def _solve(family, obs, priors, theta0, lo, hi, noise, give_up=None) -> tuple[np.ndarray, float, int]:
+def _solve(family, obs, priors, theta0, lo, hi, noise, give_up=None, max_iter: int = 60):
     return levenberg_marquardt(lambda theta: _stacked(family, theta, obs, priors, noise), theta0, lo, hi,
-                               COST_TOLERANCE, give_up=give_up)
+                               COST_TOLERANCE, max_iter=max_iter, give_up=give_up)
 
 
 def _log_posterior(family, theta, obs, priors, noise) -> float:

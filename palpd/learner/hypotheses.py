@@ -23,6 +23,7 @@ from palpd.learner.observations import EXACT, Observations
 MAX_LUMPS = 6
 RESTART_EVERY = 4
 RESIZE = (0.6, 1.6)
+LIGHT_ITERATIONS = 12  # a refit spread over many readings takes at most this many steps (it starts warm)
 CONTENDER_WEIGHT = 1e-3  # a hypothesis this likely gets fresh starts as soon as a reading surprises it
 START_SHARPNESS = 6.0
 ELLIPSE_START_STRETCH = 0.4  # log axis ratio an ellipse start is given along a region's long axis
@@ -120,11 +121,13 @@ class Hypotheses:
         if old is None or obs.n % RESTART_EVERY == 0 or (contender and self._surprised(old, obs)):
             starts += new_starts() + ([] if old is None or not contender else _resized(old))
         starts = starts[:max_starts]
+        iterations = LIGHT_ITERATIONS if max_starts is not None else 60
         if family.k == 0:
             starts = [np.array([priors.level, 0.0, 0.0])] + starts
         if not starts:
             return None
-        return evidence.fit(family, obs, priors, starts, self.noise_floor, None if old is None else old.noise_sd)
+        return evidence.fit(family, obs, priors, starts, self.noise_floor, None if old is None else old.noise_sd,
+                            iterations)
 
     def _surprised(self, old: Fit, obs: Observations) -> bool:
         f, _ = shapes.evaluate(old.family, old.theta, obs.xy[old.n:], jacobian=False)
