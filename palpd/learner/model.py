@@ -20,7 +20,7 @@ from palpd.learner.hypotheses import Hypotheses
 from palpd.learner.observations import EXACT, Observations
 from palpd.learner.threshold import free_form_levels, lump_points, supervised_levels, tau_field
 
-REFIT_FLOPS = 1.2e8  # a one-block refit costs n²·G; beyond this the kernel learned so far is kept (no spikes)
+REFIT_FLOPS = 5.5e7  # a one-block refit costs n²·G; beyond this (60 readings on 121²) the kernel is kept: no spikes
 HYPER_POINTS = 60  # the kernel is learned from at most this many readings, evenly spread over the arrival order
 CENSORED_SD = 0.25  # log sd the free-form map gives a bound, read as a reading at the bound
 FULL_UPDATE_POINTS = 60  # every hypothesis refitted every update up to this many readings
