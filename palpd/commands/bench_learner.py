@@ -117,7 +117,7 @@ def _text(r: dict) -> str:
         f"  largest single update from 1 to {r['spikes']['to_points']} points: {r['spikes']['max_ms']} ms "
         f"(at {r['spikes']['at_points']} points); beyond {FULL_UPDATE_POINTS} points: "
         f"{r['spikes']['max_ms_after_full_refits']} ms",
-        f"sklearn GaussianProcessRegressor refit + predict (mean, sd) on the same grid, per new point:",
+        "sklearn GaussianProcessRegressor refit + predict (mean, sd) on the same grid, per new point:",
         f"  kernel fixed (optimizer=None):      median {r['sklearn_fixed_kernel_ms']['p50']} ms",
         f"  with its optimiser (fmin_l_bfgs_b): median {r['sklearn_optimised_ms']['p50']} ms",
     ])
