@@ -8,13 +8,14 @@ from typing import Callable
 from palpd import strategies
 from palpd.bench import Bench
 from palpd.control.palpation import Palpation, PalpationRecord
-from palpd.control.tasks import HoldAndCollect, MoveTo
+from palpd.control.limits import rest_pose_mm
+from palpd.control.tasks import HoldAndCollect, MoveTo, Park
 from palpd.errors import ScanFault, UsageError
 from palpd.estimate import estimate_lumps
 from palpd.stiffness import FitRejected, StiffnessResult
 from palpd.stiffness.palpation import fit_palpation
 
-PARK_HEIGHT_MM = 20.0
+PARK_HEIGHT_MM = 20.0  # a single probe (probe.at) backs out this high before the servo parks the arm
 
 
 @dataclass
@@ -99,6 +100,8 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     faults = []
     servo.start()
     try:
+        # After a fault the arm may rest anywhere (a category-0 stop drops it): bring it home first, supervised.
+        servo.run(home_task(bench, settings))
         xy = planner.next_probe()
         first = (xy[0], xy[1], p.clearance_mm) if xy is not None else (0.0, 0.0, p.clearance_mm)
         servo.run(MoveTo(first, p.travel_speed_mm_s, p.accel_mm_s2))
@@ -111,8 +114,7 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
             if progress:
                 progress(len(probes), max(planner.expected_total, len(probes)), probes[-1])
             xy = planner.next_probe()
-        park = servo.last_tick.tip_mm
-        servo.run(MoveTo((park[0], park[1], PARK_HEIGHT_MM), p.travel_speed_mm_s, p.accel_mm_s2))
+        servo.stop()  # parks at the rest pose, then the amplifiers go off
     except ScanFault:
         faults.append(servo.fault.as_dict())
     finally:
@@ -123,7 +125,7 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     else:
         lumps = estimate_lumps([pr.record.xy_mm for pr in good], [pr.stiffness_n_per_mm for pr in good],
                                settings.scan.min_contrast) if good else []
-    return {
+    body = {
         "strategy": settings.scan.strategy,
         "seed": settings.scan.seed,
         "palpations": len(probes),
@@ -134,3 +136,13 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
         "lumps": [lump.as_dict() for lump in lumps],
         "probes": [pr.as_dict() for pr in probes],
     }
+    true_peak_n = servo.true_max_contact_force_n
+    if true_peak_n is not None:  # in simulation: what the tissue really took, at every physics step
+        body["truth"] = {"max_contact_force_n": round(true_peak_n, 4)}
+    return body
+
+
+def home_task(bench: Bench, settings) -> Park:
+    """Back to the rest pose from wherever the arm lies: straight up off the tissue first, then home."""
+    return Park(rest_pose_mm(bench.frame), settings.palpation.clearance_mm, settings.safety.retract_speed_mm_s,
+                settings.palpation.accel_mm_s2, from_anywhere=True)

@@ -4,6 +4,10 @@ Every host frame is answered by one STATE frame carrying the sequence number it
 answers, so a late reply to an earlier request is recognised and dropped. No
 answer within the timeout raises DriverTimeoutError: a stalled or unplugged
 bridge is detected within one timeout, never waited on forever.
+
+One wire exchange per servo tick: the STATE answering a COMMAND is kept and is
+the next read(), as long as it is younger than reply_fresh_s; a tick that comes
+late (the host was descheduled) reads afresh instead of acting on an old state.
 """
 from __future__ import annotations
 
@@ -14,43 +18,61 @@ from drivers.interfaces import JointState, Robot
 from drivers.phantom import codec, model
 from drivers.transport import Transport, open_transport
 
+DEFAULT_WATCHDOG_S = 10.0  # host silence after which the bridge cuts the amplifiers (it holds before that)
+DEFAULT_HOLD_AFTER_S = 0.0015  # host silence after which the bridge ramps to the hold currents
+DEFAULT_HOLD_RAMP_S = 0.001
+DEFAULT_REPLY_FRESH_S = 0.0015  # a COMMAND's reply younger than this is the next tick's reading
+NO_CURRENT = (0.0, 0.0, 0.0)
+
 
 class _MonotonicClock:
     def now(self) -> float:
         return time.monotonic()
 
 
+def _us(seconds: float) -> int:
+    return max(1, min(0xFFFF, round(seconds * 1e6)))
+
+
 class BridgeRobot(Robot):
-    def __init__(self, transport: Transport, clock=None, watchdog_s: float = 0.25, timeout_s: float = 0.05,
-                 current_limit_a: float = model.PEAK_CURRENT_A) -> None:
+    def __init__(self, transport: Transport, clock=None, watchdog_s: float = DEFAULT_WATCHDOG_S,
+                 timeout_s: float = 0.05, current_limit_a: float = model.PEAK_CURRENT_A,
+                 hold_after_s: float = DEFAULT_HOLD_AFTER_S, hold_ramp_s: float = DEFAULT_HOLD_RAMP_S,
+                 reply_fresh_s: float = DEFAULT_REPLY_FRESH_S) -> None:
         self.transport, self.clock = transport, clock or _MonotonicClock()
         self.watchdog_ms = max(1, min(0xFFFF, round(watchdog_s * 1000)))
+        self.hold_after_us, self.hold_ramp_us = _us(hold_after_s), _us(hold_ramp_s)
         self.timeout_s = timeout_s
+        self.reply_fresh_s = reply_fresh_s
         self.thermal = model.ThermalLimit(peak_a=min(current_limit_a, model.PEAK_CURRENT_A))
         self.decoder = codec.FrameDecoder()
         self.state: codec.State | None = None
+        self.exchanges = 0  # wire round trips so far (one per servo tick when the ticks are on time)
         self._seq = 0
         self._enabled = False
         self._last_write_s: float | None = None
+        self._reply: JointState | None = None
 
     def enable(self) -> None:
-        self._send_command(True, (0.0, 0.0, 0.0), clear_faults=True)
+        self._send_command(True, NO_CURRENT, NO_CURRENT, clear_faults=True)
         self._enabled = True
 
     def disable(self) -> None:
         self._enabled = False
-        self._send_command(False, (0.0, 0.0, 0.0))
+        self._send_command(False, NO_CURRENT, NO_CURRENT)
 
-    def write(self, currents_a: model.Vec3) -> None:
+    def write(self, currents_a: model.Vec3, hold_a: model.Vec3 | None = None) -> None:
         now = self.clock.now()
         dt = 0.0 if self._last_write_s is None else now - self._last_write_s
         self._last_write_s = now
-        self._send_command(self._enabled, self.thermal.limit(currents_a, dt))
+        self._send_command(self._enabled, self.thermal.limit(currents_a, dt), hold_a or NO_CURRENT)
 
     def read(self) -> JointState:
-        state = self._exchange(codec.encode_frame(codec.READ, self._next_seq()))
-        return JointState(self.clock.now(), state.counts, model.counts_to_angles(state.counts), state.status,
-                          state.device_time_us * 1e-6)
+        """The last COMMAND's reply while it is fresh, otherwise a READ exchange."""
+        reply, self._reply = self._reply, None
+        if reply is not None and self.clock.now() - reply.t_s <= self.reply_fresh_s:
+            return reply
+        return self._joint_state(self._exchange(codec.encode_frame(codec.READ, self._next_seq())))
 
     def close(self) -> None:
         try:
@@ -58,11 +80,20 @@ class BridgeRobot(Robot):
         finally:
             self.transport.close()
 
-    def _send_command(self, enable: bool, currents_a: model.Vec3, clear_faults: bool = False) -> None:
+    def _joint_state(self, state: codec.State) -> JointState:
+        counts = state.counts
+        return JointState(self.clock.now(), counts, model.counts_to_angles(counts), state.status,
+                          state.device_time_us * 1e-6)
+
+    def _send_command(self, enable: bool, currents_a: model.Vec3, hold_a: model.Vec3,
+                      clear_faults: bool = False) -> None:
         i0, i1, i2 = currents_a
-        milliamps = (round(1000.0 * i0), round(1000.0 * i1), round(1000.0 * i2))
-        command = codec.Command(enable, clear_faults, self.watchdog_ms, milliamps)
-        self._exchange(codec.encode_command(self._next_seq(), command))
+        h0, h1, h2 = hold_a
+        frame = codec.encode_command_values(
+            self._next_seq(), enable, clear_faults, self.watchdog_ms, self.hold_after_us, self.hold_ramp_us,
+            round(1000.0 * i0), round(1000.0 * i1), round(1000.0 * i2),
+            round(1000.0 * h0), round(1000.0 * h1), round(1000.0 * h2))
+        self._reply = self._joint_state(self._exchange(frame))
 
     def _next_seq(self) -> int:
         self._seq = (self._seq + 1) & 0xFFFF
@@ -72,6 +103,7 @@ class BridgeRobot(Robot):
         """Send one frame and wait for the STATE that answers it."""
         transport = self.transport
         transport.write(frame)
+        self.exchanges += 1
         remaining = self.timeout_s
         deadline = time.monotonic() + remaining
         while remaining > 0:
@@ -87,11 +119,14 @@ class BridgeRobot(Robot):
                                  f"{self.timeout_s * 1000:.0f} ms (unplugged or stalled?)")
 
 
-def open_bridge_robot(url: str, clock=None, watchdog_s: float = 0.25, timeout_s: float = 0.05,
-                      current_limit_a: float = model.PEAK_CURRENT_A, **transport_options) -> BridgeRobot:
+def open_bridge_robot(url: str, clock=None, watchdog_s: float = DEFAULT_WATCHDOG_S, timeout_s: float = 0.05,
+                      current_limit_a: float = model.PEAK_CURRENT_A, hold_after_s: float = DEFAULT_HOLD_AFTER_S,
+                      hold_ramp_s: float = DEFAULT_HOLD_RAMP_S, reply_fresh_s: float = DEFAULT_REPLY_FRESH_S,
+                      **transport_options) -> BridgeRobot:
     """Open the transport url names and talk to the bridge behind it; fails at once if it does not answer."""
     transport = open_transport(url, timeout_s=timeout_s, **transport_options)
-    robot = BridgeRobot(transport, clock, watchdog_s, timeout_s, current_limit_a)
+    robot = BridgeRobot(transport, clock, watchdog_s, timeout_s, current_limit_a, hold_after_s, hold_ramp_s,
+                        reply_fresh_s)
     try:
         robot.read()
     except (DriverTimeoutError, DriverOperationError):

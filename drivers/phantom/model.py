@@ -19,6 +19,9 @@ NOMINAL_CURRENT_A = 1.24
 PEAK_CURRENT_A = 5.5
 # Joint ranges of the 1.5A, generous enough for its published workspace.
 JOINT_LIMITS_RAD = ((-1.0, 1.0), (-0.6, 1.2), (-0.6, 1.2))
+HOME_Q = (0.0, 0.0, 0.0)  # where the arm rests in its stand at power-up (the calibration pose)
+# Each joint's link plus reflected rotor inertia (the coupling between joints is small on this arm).
+JOINT_INERTIA_KG_M2 = (3.0e-3, 2.5e-3, 1.5e-3)
 
 # Lumped gravity model: link-1 mass at its midpoint, link-2 and tip mass at the tip.
 # The real arm is counterbalanced; these are the residual, uncompensated masses.
@@ -63,6 +66,18 @@ def joint_torques(q: Vec3, force_n: Vec3) -> Vec3:
         j[0][1] * fx + j[1][1] * fy + j[2][1] * fz,
         j[0][2] * fx + j[1][2] * fy + j[2][2] * fz,
     )
+
+
+def lightest_tip_mass_kg(q: Vec3) -> float:
+    """The smallest mass the tip presents along any one joint's motion at q: I_j / |dp/dq_j|^2.
+
+    J's columns have lengths reach, L1 and L2 (reach = the tip's distance from the base axis), so
+    this is cheap enough to ask on a late tick.
+    """
+    _, t2, t3 = q
+    reach = L1_M * math.cos(t2) + L2_M * math.sin(t3)
+    i1, i2, i3 = JOINT_INERTIA_KG_M2
+    return min(i1 / max(reach * reach, 1e-6), i2 / (L1_M * L1_M), i3 / (L2_M * L2_M))
 
 
 def tip_velocity(q: Vec3, qdot: Vec3) -> Vec3:

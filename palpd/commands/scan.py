@@ -57,7 +57,7 @@ def run(args) -> int:
     finally:
         bench.servo.close()
     truth = truth_lumps(scene)
-    report["truth"] = {"lumps": truth}
+    report["truth"] = {"lumps": truth, **report.get("truth", {})}
     report["metrics"] = metrics.compare(truth, report["lumps"])
     _say(args, _summary(report), always=True)
     if args.report:

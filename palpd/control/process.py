@@ -87,7 +87,7 @@ class ServoProcess:
         except (EOFError, BrokenPipeError, ConnectionResetError):
             return  # the parent is gone: stop, motors off
         finally:
-            self.servo.stop()
+            self._stop()  # parked at the rest pose before the amplifiers go off, even when the parent is gone
             self.servo.robot.close()
             self.servo.sensor.close()
 
@@ -111,7 +111,7 @@ class ServoProcess:
         elif command == "start":
             servo.start()
         elif command == "stop":
-            servo.stop()
+            payload = self._stop()
         elif command == "reset":
             servo.reset()
         elif command == "tare":
@@ -138,11 +138,20 @@ class ServoProcess:
         finally:
             self._task_running = False
 
+    def _stop(self):
+        """Park and power off; the fault's message if safety stopped the park (motors off either way)."""
+        try:
+            self.servo.stop()
+        except ScanFault as exc:
+            return str(exc)
+        return None
+
     def _state(self) -> dict:
         servo, world = self.servo, self.bench.world
         return {"fault": servo.fault, "last_tick": servo.last_tick, "max_contact_force_n": servo.max_contact_force_n,
                 "motors_on": servo.motors_on, "bias_n": servo.forces.bias_n,
-                "amplifiers_on": world.amplifiers_on if world is not None else None}
+                "amplifiers_on": world.amplifiers_on if world is not None else None,
+                "true_max_contact_force_n": servo.true_max_contact_force_n}
 
 
 def _exit_on_signal(signum, frame) -> None:

@@ -41,7 +41,7 @@ class TimingStats:
             "lateness_us": {"p50": _pct(late, 50), "p99": _pct(late, 99), "p999": _pct(late, 99.9),
                             "max": round(float(late.max()), 1)},
             "overruns": self.overruns,
-            "compute_us": {"p50": _pct(compute, 50), "p99": _pct(compute, 99)},
+            "compute_us": {"p50": _pct(compute, 50), "p99": _pct(compute, 99), "max": round(float(compute.max()), 1)},
         }
 
 
