@@ -109,5 +109,6 @@ def _assemble(settings, robot, sensor, clock, world=None) -> Bench:
         SafetySupervisor(settings.safety, settings.tissue.size_mm, rest_pose_mm(frame), period_s),
         forces, settings.servo.rate_hz, control.velocity_filter_hz,
         safety_settings=settings.safety, clear_z_mm=settings.palpation.clearance_mm, truth=world,
+        drift_after_s=settings.robot.hold_after_s + settings.robot.hold_ramp_s,
     )
     return Bench(servo, clock, frame, settings.tissue.size_mm, world)

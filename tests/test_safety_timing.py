@@ -17,7 +17,7 @@ from palpd.control.tasks import MoveTo
 from palpd.errors import ScanFault
 
 SLOW_JOINTS_RAD_S = 0.8  # above the ~0.46 rad/s of an 80 mm/s move, below what a 3.5 ms late tick looks like per period
-LATE_S = 0.0035  # shorter than max_tick_gap_s (5 ms): a descheduled host, not a stalled loop
+LATE_S = 0.0035  # far shorter than max_tick_gap_s: a descheduled host, not a stalled loop
 
 
 def moving_bench(**safety):
@@ -52,7 +52,7 @@ def test_a_late_tick_during_fast_motion_is_no_encoder_jump_and_no_speed_spike():
     assert bench.servo.fault is None
     before, after = ticks[199], ticks[200]
     step_rad = max(abs(a - b) for a, b in zip(after.q, before.q))
-    assert after.gap_s == pytest.approx(LATE_S, abs=0.0006)
+    assert LATE_S < after.gap_s < Settings().safety.max_tick_gap_s  # the stall, the skipped periods, the reading's age
     assert step_rad > SLOW_JOINTS_RAD_S * bench.servo.period_s + max(model.RAD_PER_COUNT)  # one-period rule trips
     speeds = [math.dist(t.velocity_mm_s, (0, 0, 0)) for t in ticks[195:210]]
     assert max(speeds) < 1.3 * 80.0  # the velocity is over the real gap: 3.5x the step is not 3.5x the speed
@@ -75,7 +75,7 @@ def test_an_encoder_jump_is_still_caught_within_one_tick_during_the_same_motion(
 def test_a_gap_longer_than_max_tick_gap_is_still_a_loop_stall():
     bench = moving_bench()
     with pytest.raises(ScanFault, match="loop_stall"):
-        run_with(bench, 200, lambda b: stall(b.clock, 0.008))
+        run_with(bench, 200, lambda b: stall(b.clock, Settings().safety.max_tick_gap_s + 0.001))
 
 
 def test_the_bridges_wrapping_device_clock_gives_the_sample_gap():
@@ -86,7 +86,7 @@ def test_the_bridges_wrapping_device_clock_gives_the_sample_gap():
     ticks = run_with(bench, 200, late_tick)
     assert bench.servo.fault is None and len(ticks) > 250
     assert all(t.sample_gap_s == pytest.approx(t.gap_s, abs=1e-6) for t in ticks[1:])
-    assert max(t.sample_gap_s for t in ticks) == pytest.approx(LATE_S, abs=0.0006)
+    assert max(t.sample_gap_s for t in ticks) > LATE_S
 
 
 def supervisor():

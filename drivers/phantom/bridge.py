@@ -106,8 +106,14 @@ class BridgeRobot(Robot):
         self.exchanges += 1
         remaining = self.timeout_s
         deadline = time.monotonic() + remaining
-        while remaining > 0:
-            for received in self.decoder.feed(transport.read(remaining)):
+        data = transport.read(remaining)
+        whole = codec.parse_state_frame(data) if not self.decoder.pending else None
+        if whole is not None and whole[1].ack_seq == self._seq:  # the usual case: the answer, whole and alone
+            self.state = whole[1]
+            return self.state
+        remaining = deadline - time.monotonic()
+        while True:
+            for received in self.decoder.feed(data):
                 if received.kind != codec.STATE:
                     continue
                 state = codec.decode_state(received.payload)
@@ -115,6 +121,9 @@ class BridgeRobot(Robot):
                     self.state = state
                     return state
             remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                break
+            data = transport.read(remaining)
         raise DriverTimeoutError(f"{transport.url}: the bridge did not answer within "
                                  f"{self.timeout_s * 1000:.0f} ms (unplugged or stalled?)")
 

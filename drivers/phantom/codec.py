@@ -111,6 +111,23 @@ def decode_state(payload: bytes) -> State:
     return State((c1, c2, c3), status, time_us, ack, errors)
 
 
+_STATE_FRAME = struct.Struct(_STATE_BODY.format + "H")  # a whole STATE frame, CRC included
+STATE_FRAME_BYTES = _STATE_FRAME.size
+
+
+def parse_state_frame(data: bytes) -> tuple[int, State] | None:
+    """(sequence, State) if data is exactly one valid STATE frame, else None (then use a FrameDecoder).
+
+    The host's fast path: one reply per exchange almost always arrives whole and alone."""
+    if len(data) != STATE_FRAME_BYTES:
+        return None
+    sync, kind, length, seq, c0, c1, c2, status, time_us, ack, errors, crc = _STATE_FRAME.unpack(data)
+    if sync != SYNC or kind != STATE or length != STATE_PAYLOAD.size \
+            or crc != binascii.crc_hqx(data[2:STATE_FRAME_BYTES - CRC.size], 0xFFFF):
+        return None
+    return seq, State((c0, c1, c2), status, time_us, ack, errors)
+
+
 class FrameDecoder:
     """Turns a byte stream into frames; skips garbage, rejects frames whose length, type or CRC is wrong."""
 
@@ -118,6 +135,11 @@ class FrameDecoder:
         self._buffer = bytearray()
         self.discarded_bytes = 0
         self.rejected_frames = 0
+
+    @property
+    def pending(self) -> bool:
+        """Bytes of an unfinished frame are waiting for the rest."""
+        return bool(self._buffer)
 
     def feed(self, data: bytes) -> list[Frame]:
         frames: list[Frame] = []

@@ -141,16 +141,16 @@ def torque_per_amp(joint: int) -> float:
     return CAPSTAN_RATIO[joint] * MOTOR_KT_NM_PER_A
 
 
-def torques_to_currents(tau: Vec3, limit_a: float = PEAK_CURRENT_A) -> Vec3:
-    """Motor currents for joint torques, clamped to +-limit_a."""
-    out = []
-    for joint, torque in enumerate(tau):
-        amps = torque / torque_per_amp(joint)
-        out.append(limit_a if amps > limit_a else -limit_a if amps < -limit_a else amps)
-    return tuple(out)  # type: ignore[return-value]
-
-
 _NM_PER_A = tuple(torque_per_amp(joint) for joint in range(3))
+_A0, _A1, _A2 = (1.0 / nm for nm in _NM_PER_A)
+
+
+def torques_to_currents(tau: Vec3, limit_a: float = PEAK_CURRENT_A) -> Vec3:
+    """Motor currents for joint torques, clamped to +-limit_a (unrolled: twice every servo tick)."""
+    a0, a1, a2 = tau[0] * _A0, tau[1] * _A1, tau[2] * _A2
+    return (limit_a if a0 > limit_a else -limit_a if a0 < -limit_a else a0,
+            limit_a if a1 > limit_a else -limit_a if a1 < -limit_a else a1,
+            limit_a if a2 > limit_a else -limit_a if a2 < -limit_a else a2)
 
 
 def currents_to_torques(currents: Vec3) -> Vec3:
@@ -188,6 +188,16 @@ def _times(m, v: Vec3) -> Vec3:
         m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
         m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2],
     )
+
+
+class SensorTilt:
+    """tilt_to_base for one q_aligned, with the aligned pose's rotation worked out once (the servo's per-tick form)."""
+
+    def __init__(self, q_aligned: Vec3) -> None:
+        self._aligned = link2_rotation(q_aligned)
+
+    def to_base(self, q: Vec3, v: Vec3) -> Vec3:
+        return _times(link2_rotation(q), _transpose_times(self._aligned, v))
 
 
 def tilt_to_base(q: Vec3, q_aligned: Vec3, v: Vec3) -> Vec3:
@@ -229,16 +239,19 @@ class ThermalLimit:
 
     def limit(self, currents_a: Vec3, dt_s: float) -> Vec3:
         """Clamp each current to the peak, or to nominal once that joint's budget is spent; then account."""
-        out = []
-        for joint, amps in enumerate(currents_a):
-            cap = self.nominal_a if self.heat_a2s[joint] >= self.budget_a2s else self.peak_a
-            if amps != amps:  # NaN: no current rather than an undefined one
-                amps = 0.0
-            amps = cap if amps > cap else -cap if amps < -cap else amps
-            heat = self.heat_a2s[joint] + (amps * amps - self.nominal_a * self.nominal_a) * dt_s
-            self.heat_a2s[joint] = min(max(heat, 0.0), self.budget_a2s)
-            out.append(amps)
-        return tuple(out)  # type: ignore[return-value]
+        heat = self.heat_a2s
+        return (self._joint(0, currents_a[0], dt_s, heat), self._joint(1, currents_a[1], dt_s, heat),
+                self._joint(2, currents_a[2], dt_s, heat))
+
+    def _joint(self, joint: int, amps: float, dt_s: float, heat: list) -> float:
+        budget = self.budget_a2s
+        cap = self.nominal_a if heat[joint] >= budget else self.peak_a
+        if amps != amps:  # NaN: no current rather than an undefined one
+            amps = 0.0
+        amps = cap if amps > cap else -cap if amps < -cap else amps
+        warmer = heat[joint] + (amps * amps - self.nominal_a * self.nominal_a) * dt_s
+        heat[joint] = budget if warmer > budget else 0.0 if warmer < 0.0 else warmer
+        return amps
 
     def limited(self) -> bool:
         return any(h >= self.budget_a2s for h in self.heat_a2s)

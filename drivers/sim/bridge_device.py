@@ -145,7 +145,9 @@ class SimBridgeTransport(Transport):
     def write(self, data: bytes) -> None:
         if self.unplugged:
             raise DriverOperationError(f"{self.url}: write failed (device unplugged)")
+        started = time.perf_counter()
         self._pending += self.device.handle(data)
+        self.device.world.cpu_s += time.perf_counter() - started  # the device's share of the host's tick
 
     def read(self, timeout_s: float) -> bytes:
         if self.unplugged:

@@ -49,6 +49,7 @@ class SimWorld:
         self.faults = SimFaults()  # fault injection for tests; all off
         self.hand = None  # when set, a person moves the arm: hand.q_at(t_s) overrides the dynamics
         self.step_hook = None  # called after every physics step (tests and benchmarks watch the truth here)
+        self.cpu_s = 0.0  # CPU time spent simulating the devices (the bridge's and the DAQ's side), for benchmarks
         self._rotation_deg = scene.placement.rotation_deg
         self._tissue = scene.tissue
 

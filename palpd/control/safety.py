@@ -71,7 +71,8 @@ class SafetySupervisor:
         margin = settings.joint_limit_margin_rad
         self.joint_ranges = tuple((low + margin, high - margin) for low, high in model.JOINT_LIMITS_RAD)
         self.box_mm = workspace_box_mm(settings, tissue_size_mm, home_mm)
-        self.checks = [self._device, self._stall, self._encoders, self._sample, self._force, self._rigid,
+        # The category-0 checks first; the encoder check also keeps the previous pose, so it must see every tick.
+        self.checks = [self._device, self._encoders, self._stall, self._sample, self._force, self._rigid,
                        self._limits, self._speed, self._tracking]
         self.category_0_checks = [self._device, self._encoders]
         self._limits_now = (self.joint_ranges, self.box_mm)
@@ -139,16 +140,18 @@ class SafetySupervisor:
         return None
 
     def _encoders(self, tick) -> Fault | None:
-        previous, self._previous_q = self._previous_q, tick.q
+        q = tick.q
+        previous, self._previous_q = self._previous_q, q
         if previous is None:
             return None
         allowed_rad = self.s.max_joint_speed_rad_s * self._elapsed_s(tick)
-        for j in range(3):
-            step = tick.q[j] - previous[j]
-            if abs(step) > allowed_rad + model.RAD_PER_COUNT[j]:
-                return Fault("encoder_jump", f"joint {j + 1} encoder jumped {step:+.4f} rad in "
-                             f"{1000 * tick.sample_gap_s:.1f} ms", tick.t_s)
-        return None
+        c0, c1, c2 = model.RAD_PER_COUNT
+        if abs(q[0] - previous[0]) <= allowed_rad + c0 and abs(q[1] - previous[1]) <= allowed_rad + c1 \
+                and abs(q[2] - previous[2]) <= allowed_rad + c2:
+            return None
+        j = max(range(3), key=lambda i: abs(q[i] - previous[i]) - model.RAD_PER_COUNT[i])
+        return Fault("encoder_jump", f"joint {j + 1} encoder jumped {q[j] - previous[j]:+.4f} rad in "
+                     f"{1000 * tick.sample_gap_s:.1f} ms", tick.t_s)
 
     def _elapsed_s(self, tick) -> float:
         """The time the joints had to move since the previous sample: a late tick allows more motion, but
@@ -159,7 +162,8 @@ class SafetySupervisor:
     def _sample(self, tick) -> Fault | None:
         sample = tick.sample
         flags = sample.flags
-        if flags & SAMPLE_INVALID or not all(map(math.isfinite, tick.force_tissue_n)):
+        fx, fy, fz = tick.force_tissue_n
+        if flags & SAMPLE_INVALID or not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(fz)):
             return Fault("invalid_sample", "force sample invalid (NaN or flagged)", tick.t_s)
         if flags & SAMPLE_STALE:
             return Fault("stale_sample", "force sensor gives no new readings (sensor frozen?)", tick.t_s)
@@ -193,12 +197,12 @@ class SafetySupervisor:
         return None
 
     def _limits(self, tick) -> Fault | None:
-        joints, box = self._limits_now
-        for j, (low, high) in enumerate(joints):
-            if not low <= tick.q[j] <= high:
-                return Fault("joint_limit", f"joint {j + 1} at {tick.q[j]:.3f} rad, near its hard stop", tick.t_s)
-        if not all(low <= v <= high for v, (low, high) in zip(tick.tip_mm, box)):
-            x, y, z = tick.tip_mm
+        (j0, j1, j2), (bx, by, bz) = self._limits_now
+        q, (x, y, z) = tick.q, tick.tip_mm
+        if not (j0[0] <= q[0] <= j0[1] and j1[0] <= q[1] <= j1[1] and j2[0] <= q[2] <= j2[1]):
+            j = next(i for i, (low, high) in enumerate((j0, j1, j2)) if not low <= q[i] <= high)
+            return Fault("joint_limit", f"joint {j + 1} at {q[j]:.3f} rad, near its hard stop", tick.t_s)
+        if not (bx[0] <= x <= bx[1] and by[0] <= y <= by[1] and bz[0] <= z <= bz[1]):
             return Fault("workspace", f"tip at ({x:.1f}, {y:.1f}, {z:.1f}) mm left the workspace box", tick.t_s)
         return None
 

@@ -23,6 +23,7 @@ from drivers.geometry import TissueFrame
 from drivers.interfaces import SAMPLE_STALE, ForceSample
 from drivers.phantom import model
 from palpd.control.limits import rest_pose_mm
+from palpd.control.rejoin import Rejoin
 from palpd.control.safety import Fault
 from palpd.control.stopping import Stopping
 from palpd.control.timing import TimingStats
@@ -30,6 +31,7 @@ from palpd.errors import ScanFault
 
 Vec3 = tuple[float, float, float]
 FAULT_HISTORY_TICKS = 20  # samples kept with a fault record
+NO_OFFSET = (0.0, 0.0, 0.0)
 DEVICE_CLOCK_WRAP_S = 2**32 * 1e-6  # the bridge's microsecond counter is 32 bits
 NO_CURRENT = (0.0, 0.0, 0.0)
 
@@ -57,7 +59,7 @@ class Tick:
 class ServoLoop(Stopping):
     def __init__(self, robot, sensor, clock, frame: TissueFrame, controller, supervisor, forces,
                  rate_hz: float = 1000.0, velocity_filter_hz: float = 100.0, safety_settings=None,
-                 clear_z_mm: float = 4.0, truth=None) -> None:
+                 clear_z_mm: float = 4.0, truth=None, drift_after_s: float | None = None) -> None:
         self.robot, self.sensor, self.clock = robot, sensor, clock
         self.frame, self.controller, self.supervisor, self.forces = frame, controller, supervisor, forces
         self.period_s = 1.0 / rate_hz
@@ -73,6 +75,7 @@ class ServoLoop(Stopping):
         self.clear_z_mm = clear_z_mm  # how high above the tissue a stop backs out before it parks
         self.rest_mm = rest_pose_mm(frame)  # where the arm is parked before the amplifiers go off
         self.truth = truth  # the simulated world, when there is one: the true contact force
+        self._sim_cpu_s = truth.cpu_s if truth is not None else 0.0
         self.fault: Fault | None = None
         self.timing = TimingStats(rate_hz)
         self.max_contact_force_n = 0.0
@@ -86,6 +89,12 @@ class ServoLoop(Stopping):
         self._motion_t = 0.0
         self._lost_s = 0.0
         self._setpoint: Vec3 | None = None  # the last command's target: idle ticks hold it
+        self._error: Vec3 | None = None  # tip minus target when the last command went out
+        self.rejoin = Rejoin(self.period_s)  # the drift over a late tick, being taken back
+        # A gap longer than this left the arm in the bridge's gravity hold (its hold plus its ramp): it drifted.
+        self.drift_after_s = drift_after_s if drift_after_s is not None else 2.5 * self.period_s
+        self._velocity_error: Vec3 = NO_OFFSET
+        self._task_target: Vec3 | None = None  # the task's own last target (without the offset)
         self._sensor_lost: str | None = None
         self._last_sample: ForceSample | None = None
 
@@ -103,11 +112,14 @@ class ServoLoop(Stopping):
         return None if self.truth is None else self.truth.max_contact_force_n
 
     def start(self) -> None:
+        """Amplifiers on; the first tick comes a period later and reads the enable's reply (one exchange a tick)."""
         self.robot.enable()
         self.motors_on = True
-        self._setpoint = None
+        self._setpoint, self._error, self._task_target = None, None, None
+        self.rejoin.reset()
         self._sensor_lost = None
-        self._deadline = self.clock.now()
+        self._deadline = self.clock.now() + self.period_s
+        self.clock.sleep_until(self._deadline)
         self._previous_t = None
         self.supervisor.reset()  # the arm may have been moved by hand while the motors were off
         if self.truth is not None:
@@ -196,27 +208,41 @@ class ServoLoop(Stopping):
         return fault
 
     def _command(self, tick: Tick, target: Vec3) -> None:
+        """Write the currents that take the tip to the task's target, rejoining the path after a late tick."""
+        velocity = self._path_velocity(target)
+        rejoin = self.rejoin
+        if tick.gap_s > self.drift_after_s and self._error is not None:
+            rejoin.drifted(tick.tip_mm, tick.velocity_mm_s, target, velocity, self._error, self._velocity_error)
+        if rejoin.active:
+            (ox, oy, oz), (wx, wy, wz) = rejoin.step(math.sqrt(sum(v * v for v in velocity)))
+            target = (target[0] + ox, target[1] + oy, target[2] + oz)
+            velocity = (velocity[0] + wx, velocity[1] + wy, velocity[2] + wz)
         controller = self.controller
-        currents = controller.currents(tick.q, tick.tip_mm, tick.velocity_mm_s, target,
-                                       self._setpoint_velocity(target), tick.gap_s)
+        currents = controller.currents(tick.q, tick.tip_mm, tick.velocity_mm_s, target, velocity, tick.gap_s)
         self._setpoint = target
+        tip, v = tick.tip_mm, tick.velocity_mm_s
+        self._error = (tip[0] - target[0], tip[1] - target[1], tip[2] - target[2])
+        self._velocity_error = (v[0] - velocity[0], v[1] - velocity[1], v[2] - velocity[2])
         self.robot.write(currents, controller.hold_a)
 
-    def _setpoint_velocity(self, target: Vec3) -> Vec3:
-        """How fast the setpoint moves on the tick clock; a jump (a new task's first setpoint) is no velocity."""
-        previous = self._setpoint
+    def _path_velocity(self, target: Vec3) -> Vec3:
+        """How fast the task's target moves on the tick clock; a jump (a new task's first target) is no velocity."""
+        previous, self._task_target = self._task_target, target
         if previous is None:
-            return NO_CURRENT
+            return NO_OFFSET
         rate = 1.0 / self.period_s
         v = ((target[0] - previous[0]) * rate, (target[1] - previous[1]) * rate, (target[2] - previous[2]) * rate)
-        return v if v[0] * v[0] + v[1] * v[1] + v[2] * v[2] <= self._max_setpoint_speed_sq else NO_CURRENT
+        return v if v[0] * v[0] + v[1] * v[1] + v[2] * v[2] <= self._max_setpoint_speed_sq else NO_OFFSET
 
     def _end_tick(self, tick: Tick, started: float) -> None:
         if self.tick_hook is not None:
             self.tick_hook(tick)
         compute_s = time.perf_counter() - started
+        sim_s = 0.0
+        if self.truth is not None:  # the simulated devices' share of this tick, for the benchmark
+            sim_s, self._sim_cpu_s = self.truth.cpu_s - self._sim_cpu_s, self.truth.cpu_s
         lateness_s = self._wait_for_next_period()
-        self.timing.record(lateness_s, compute_s)
+        self.timing.record(lateness_s, compute_s, sim_s)
 
     def _sense(self) -> Tick:
         state = self.robot.read()

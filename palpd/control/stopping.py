@@ -27,14 +27,16 @@ PARK_SLACK_S = 1.0  # allowed on top of the park's own duration before the stop 
 
 
 class Stopping:
-    def stop(self) -> None:
+    def stop(self, park: bool = True) -> None:
         """Park at the rest pose (supervised), then power off; raises ScanFault if safety stops the park
-        (the motors are off either way)."""
-        if not self.motors_on:
+        (the motors are off either way). park=False powers off where the arm is: only for a person holding
+        it (a manual session), who then holds its weight."""
+        if not self.motors_on or not park:
             self._power_off()
             return
+        tip = self.last_tick.tip_mm if self.last_tick is not None else self.rest_mm
         try:
-            self.run(self.park_task())
+            self.run(self.park_task(), timeout_s=self.retract_timeout_s + self._park_time_s(tip))
         finally:
             self._power_off()
 

@@ -6,9 +6,13 @@ finding its setpoint jumped ahead when it wakes.
 """
 from __future__ import annotations
 
+import math
+
 from palpd.control.trajectory import LinearMove
 
 Vec3 = tuple[float, float, float]
+PARKED_MM = 1.0  # the tip this close to the rest pose, and slower than PARKED_MM_S, is parked
+PARKED_MM_S = 5.0
 
 
 class MoveTo:
@@ -58,7 +62,9 @@ class Park:
         if self._home is None:
             self._home = MoveTo(self.rest_mm, self.speed, self.accel, start=self.lift.goal)
         target = self._home.step(tick)
-        self.done = self._home.done
+        # Done only with the arm itself at rest there (it may lag its path): the power goes off next.
+        self.done = self._home.done and math.dist(tick.tip_mm, self.rest_mm) <= PARKED_MM \
+            and math.dist(tick.velocity_mm_s, (0.0, 0.0, 0.0)) <= PARKED_MM_S
         return target
 
 
