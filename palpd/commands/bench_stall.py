@@ -79,14 +79,14 @@ def parse_pattern(text: str) -> Pattern:
     return pattern
 
 
-def run_pattern(settings, pattern: Pattern) -> dict:
+def run_pattern(settings, pattern: Pattern, points_mm=None) -> dict:
     """One run of the pattern on a fresh simulated bench; the figures the table prints."""
     from palpd.bench import open_simulated_bench
     from palpd.scan import FixedPlan, run_scan
 
     bench = open_simulated_bench(settings, paper_scene())
     watch = _Watch(bench, pattern)
-    report = run_scan(bench, settings, FixedPlan(list(POINTS_MM)))
+    report = run_scan(bench, settings, FixedPlan(list(points_mm or POINTS_MM)))
     fault = report["faults"][0] if report["faults"] else None
     moved_mm, pressing_n = watch.after_stop(AFTER_STOP_S)
     return {"pattern": pattern.name, "gap_ms": pattern.gap_ms, "every_ticks": pattern.every,
@@ -134,11 +134,12 @@ class _Watch:
 
     def after_stop(self, seconds: float) -> tuple[float, float]:
         """(how far the tip moved, the largest contact force) over `seconds` with the motors off."""
-        world = self.world
+        world, clock = self.world, self.bench.clock
         world.step_hook = None
         start, pressing = world.tip_mm(), 0.0
-        end_s = world.t_s + seconds
-        while world.t_s < end_s - 1e-9:
-            world.advance_to(min(world.t_s + 0.01, end_s))
+        end_s = clock.now() + seconds
+        while clock.now() < end_s - 1e-9:
+            clock.sleep_until(min(clock.now() + 0.01, end_s))
+            world.advance_to(clock.now())
             pressing = max(pressing, world.contact_force_n)
         return math.dist(start, world.tip_mm()), pressing

@@ -33,8 +33,9 @@ _FAULT_BITS = sum(bit for bit, _, _ in _STATUS_FAULTS)
 # link that stopped answering leaves nothing to command; the bridge's watchdog holds and then cuts.
 CATEGORY_0 = frozenset({"estop", "amplifier_fault", "watchdog", "over_temperature", "encoder_jump", "robot_link"})
 RIGID_FORCE_FRACTION = 0.9  # measured force at least this share of the cap...
-RIGID_STILL_MM_S = 2.0  # ...with the tip slower than this, for rigid_window_s: pushing on something rigid
+RIGID_STILL_MM = 0.25  # ...with the tip within this of where it was, for rigid_window_s: pushing on something rigid
 LATE_MEMORY_S = 1.0  # lateness is remembered over about this long (an exponential window)
+WIDEN_MM, WIDEN_RAD = 5.0, 0.05  # slack around a pose accepted as inside the limits (recovering from it)
 
 
 def stop_category(code: str) -> int:
@@ -83,6 +84,7 @@ class SafetySupervisor:
         self._previous_q = None
         self._late_s = 0.0
         self._rigid_since: float | None = None
+        self._rigid_at = (0.0, 0.0, 0.0)
         self._astray_since: float | None = None
         self._limits_now = (self.joint_ranges, self.box_mm)
 
@@ -109,8 +111,8 @@ class SafetySupervisor:
         """Accept the pose the arm is in now as inside the limits (recovering it from wherever it came to
         rest after a fault); reset() narrows them again."""
         (joints, box) = self._limits_now
-        joints = tuple((min(lo, q - 0.01), max(hi, q + 0.01)) for (lo, hi), q in zip(joints, tick.q))
-        box = tuple((min(lo, v - 1.0), max(hi, v + 1.0)) for (lo, hi), v in zip(box, tick.tip_mm))
+        joints = tuple((min(lo, q - WIDEN_RAD), max(hi, q + WIDEN_RAD)) for (lo, hi), q in zip(joints, tick.q))
+        box = tuple((min(lo, v - WIDEN_MM), max(hi, v + WIDEN_MM)) for (lo, hi), v in zip(box, tick.tip_mm))
         self._limits_now = (joints, box)
 
     # -- the checks, in order -------------------------------------------------------------------------
@@ -181,15 +183,15 @@ class SafetySupervisor:
         return None
 
     def _rigid(self, tick) -> Fault | None:
-        """The controller at its cap, the sensor confirming it and the tip not moving: something rigid."""
+        """The controller at its cap, the sensor confirming it and the tip not moving over the whole window
+        (by displacement, which the encoder's counts do not make flicker as a velocity would): something rigid."""
         cap = self.s.force_cap_n
-        pressed = tick.commanded_n >= cap * 0.999 and _norm(tick.force_tissue_n) >= RIGID_FORCE_FRACTION * cap \
-            and _norm(tick.velocity_mm_s) < RIGID_STILL_MM_S
+        pressed = tick.commanded_n >= cap * 0.999 and _norm(tick.force_tissue_n) >= RIGID_FORCE_FRACTION * cap
         if not pressed:
             self._rigid_since = None
             return None
-        if self._rigid_since is None:
-            self._rigid_since = tick.t_s
+        if self._rigid_since is None or math.dist(tick.tip_mm, self._rigid_at) > RIGID_STILL_MM:
+            self._rigid_since, self._rigid_at = tick.t_s, tick.tip_mm
         if tick.t_s - self._rigid_since >= self.s.rigid_window_s:
             return Fault("rigid_contact", f"pushing against something rigid: {_norm(tick.force_tissue_n):.2f} N "
                          f"measured at the {cap} N cap with the tip still for "
