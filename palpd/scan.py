@@ -8,8 +8,7 @@ from typing import Callable
 from palpd import strategies
 from palpd.bench import Bench
 from palpd.control.palpation import Palpation, PalpationRecord
-from palpd.control.limits import rest_pose_mm
-from palpd.control.tasks import HoldAndCollect, MoveTo, Park
+from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.errors import ScanFault, UsageError
 from palpd.estimate import estimate_lumps
 from palpd.stiffness import FitRejected, StiffnessResult
@@ -98,10 +97,8 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     wall_start, robot_start = time.monotonic(), bench.clock.now()
     probes: list[Probe] = []
     faults = []
-    servo.start()
     try:
-        # After a fault the arm may rest anywhere (a category-0 stop drops it): bring it home first, supervised.
-        servo.run(home_task(bench, settings))
+        servo.start()  # homes the arm first, supervised: after a category-0 stop it may lie anywhere
         xy = planner.next_probe()
         first = (xy[0], xy[1], p.clearance_mm) if xy is not None else (0.0, 0.0, p.clearance_mm)
         servo.run(MoveTo(first, p.travel_speed_mm_s, p.accel_mm_s2))
@@ -140,9 +137,3 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     if true_peak_n is not None:  # in simulation: what the tissue really took, at every physics step
         body["truth"] = {"max_contact_force_n": round(true_peak_n, 4)}
     return body
-
-
-def home_task(bench: Bench, settings) -> Park:
-    """Back to the rest pose from wherever the arm lies: straight up off the tissue first, then home."""
-    return Park(rest_pose_mm(bench.frame), settings.palpation.clearance_mm, settings.safety.retract_speed_mm_s,
-                settings.palpation.accel_mm_s2, from_anywhere=True)

@@ -56,10 +56,10 @@ def run(args) -> int:
     if args.json:
         print(json.dumps({"cap_n": settings.safety.force_cap_n, "patterns": results}, indent=2))
         return 0
-    print(f"{'pattern':24s} {'outcome':44s} {'true peak':>9s} {'host peak':>9s} {'outside':>7s} "
+    print(f"{'pattern':24s} {'outcome':34s} {'true peak':>9s} {'host peak':>9s} {'outside':>7s} "
           f"{'moved after stop':>16s} {'pressing after':>14s}")
     for r in results:
-        print(f"{r['pattern']:24s} {r['outcome'][:44]:44s} {r['true_peak_n']:7.2f} N {r['host_peak_n']:7.2f} N "
+        print(f"{r['pattern']:24s} {r['outcome'][:34]:34s} {r['true_peak_n']:7.2f} N {r['host_peak_n']:7.2f} N "
               f"{r['outside_workspace_mm']:4.1f} mm {r['moved_after_stop_mm']:13.1f} mm {r['pressing_after_stop_n']:12.2f} N")
     print(f"force cap {settings.safety.force_cap_n} N; simulated time, paper scene, palpations at "
           f"{', '.join(str(p) for p in POINTS_MM)} mm")
@@ -90,12 +90,18 @@ def run_pattern(settings, pattern: Pattern, points_mm=None) -> dict:
     fault = report["faults"][0] if report["faults"] else None
     moved_mm, pressing_n = watch.after_stop(AFTER_STOP_S)
     return {"pattern": pattern.name, "gap_ms": pattern.gap_ms, "every_ticks": pattern.every,
-            "outcome": "completed" if fault is None else f"{fault['code']}: {fault['stop']}",
+            "outcome": "completed" if fault is None else f"{fault['code']}, {_how_it_stopped(fault)}",
             "fault": fault and {k: fault[k] for k in ("code", "message", "stop_category", "stop")},
             "palpations": report["palpations"], "true_peak_n": round(watch.true_peak_n, 3),
             "host_peak_n": report["max_contact_force_n"], "outside_workspace_mm": round(watch.outside_mm, 2),
             "moved_after_stop_mm": round(moved_mm, 2), "pressing_after_stop_n": round(pressing_n, 3),
             "robot_time_s": report["robot_time_s"]}
+
+
+def _how_it_stopped(fault: dict) -> str:
+    if "parked" in fault["stop"]:
+        return "backed out and parked"
+    return "current cut" if "cut" in fault["stop"] else fault["stop"]
 
 
 def paper_scene():

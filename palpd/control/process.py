@@ -87,7 +87,7 @@ class ServoProcess:
         except (EOFError, BrokenPipeError, ConnectionResetError):
             return  # the parent is gone: stop, motors off
         finally:
-            self._stop()  # parked at the rest pose before the amplifiers go off, even when the parent is gone
+            self._faulted(self.servo.stop)  # parked at the rest pose before power-off, even when the parent is gone
             self.servo.robot.close()
             self.servo.sensor.close()
 
@@ -109,9 +109,9 @@ class ServoProcess:
         if command == "run":
             payload, kind = self._run(*args)
         elif command == "start":
-            servo.start()
+            payload = self._faulted(servo.start)
         elif command == "stop":
-            payload = self._stop()
+            payload = self._faulted(servo.stop)
         elif command == "reset":
             servo.reset()
         elif command == "tare":
@@ -138,12 +138,15 @@ class ServoProcess:
         finally:
             self._task_running = False
 
-    def _stop(self):
-        """Park and power off; the fault's message if safety stopped the park (motors off either way)."""
+    def _faulted(self, action):
+        """Run a motion (start homes, stop parks) as a task: None, or the fault's message if safety stopped it."""
+        self._task_running = True
         try:
-            self.servo.stop()
+            action()
         except ScanFault as exc:
             return str(exc)
+        finally:
+            self._task_running = False
         return None
 
     def _state(self) -> dict:

@@ -111,7 +111,10 @@ class RemoteServo:
         return self.process.pid
 
     def start(self) -> None:
-        self.call("start")
+        """Amplifiers on and the arm home, supervised; raises ScanFault if safety stopped the homing."""
+        stopped_by = self.call("start")
+        if stopped_by is not None:
+            raise ScanFault(stopped_by)
 
     def stop(self) -> None:
         """Park at the rest pose, then motors off; raises ScanFault if safety stopped the park. A dead

@@ -111,8 +111,11 @@ class ServoLoop(Stopping):
         """In simulation, the world's own peak contact force since start(); None on hardware."""
         return None if self.truth is None else self.truth.max_contact_force_n
 
-    def start(self) -> None:
-        """Amplifiers on; the first tick comes a period later and reads the enable's reply (one exchange a tick)."""
+    def start(self, home: bool = True) -> None:
+        """Amplifiers on, then (home=True) the arm back to its rest pose from wherever it lies, supervised:
+        straight up off the tissue first (after a category-0 stop it may have fallen onto it). Raises ScanFault
+        (motors off) if safety stops that. The first tick comes a period after the enable and reads its reply
+        (one exchange a tick). home=False is for a person holding the arm (a manual session)."""
         self.robot.enable()
         self.motors_on = True
         self._setpoint, self._error, self._task_target = None, None, None
@@ -124,6 +127,8 @@ class ServoLoop(Stopping):
         self.supervisor.reset()  # the arm may have been moved by hand while the motors were off
         if self.truth is not None:
             self.truth.reset_peak()
+        if home:
+            self.home()
 
     def request_estop(self) -> None:
         """The software e-stop input: the next tick cuts the current and latches a fault."""

@@ -40,6 +40,11 @@ class Stopping:
         finally:
             self._power_off()
 
+    def home(self) -> None:
+        """To the rest pose from wherever the arm is, supervised (limits widened to take in where it starts)."""
+        tip = self.last_tick.tip_mm if self.last_tick is not None else self.rest_mm
+        self.run(self.park_task(from_anywhere=True), timeout_s=self.retract_timeout_s + self._park_time_s(tip) + 60.0)
+
     def park_task(self, from_anywhere: bool = False) -> Park:
         return Park(self.rest_mm, self.clear_z_mm, self.retract_speed_mm_s, RETRACT_ACCEL_MM_S2, from_anywhere)
 

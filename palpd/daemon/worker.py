@@ -101,6 +101,11 @@ class ScanWorker(threading.Thread):
     def scan(self, settings, planner, on_probe) -> dict:
         return run_scan(self.bench, settings, StoppablePlan(planner, self.stop_requested), on_probe)
 
+    def home(self) -> None:
+        """Bring the arm to its rest pose (start() homes it, supervised) and power off there."""
+        self.bench.servo.start()
+        self.bench.servo.stop()
+
     def tare(self) -> None:
         p, servo = self.settings.palpation, self.bench.servo
         servo.start()
