@@ -12,15 +12,17 @@ import os
 import sys
 
 from drivers.errors import DriverError
+from palpd import __version__
 from palpd.errors import EXIT_FAILURE, PalpdError
 
 # Order is the order of `palpd --help`.
-COMMAND_MODULES = ["scan", "serve", "learner", "simulate", "dataset", "study", "calibration", "schema",
-                   "replay", "keygen", "bench"]
+COMMAND_MODULES = ["scan", "scenes", "serve", "learner", "simulate", "dataset", "study", "calibration", "schema",
+                   "replay", "keygen", "files", "bench"]
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="palpd", description="Robot palpation: find stiff lumps in soft tissue.")
+    parser.add_argument("--version", action="version", version=f"palpd {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in COMMAND_MODULES:
         module = importlib.import_module(f"palpd.commands.{name}")

@@ -162,9 +162,14 @@ class BusSettings(_Section):
 
 class DaemonSettings(_Section):
     state_dir: str = ""  # sessions live here; "" = $STATE_DIRECTORY (systemd) or ~/.local/state/palpd
-    scene: str = ""  # the simulated bench's scene, needed while robot.url is sim://
+    scene: str = ""  # the simulated bench's scene (file or shipped name) while robot.url is sim://; "" = paper
     realtime: bool = True  # simulated bench on the wall clock (false: virtual time, as fast as the CPU allows)
     stop_timeout_s: Positive = 10.0  # SIGTERM/scan.stop: wait this long for the palpation to finish, then abort
+    log_level: Literal["debug", "info", "warning", "error"] = "info"  # `palpd serve --log-level` overrides it
+    status_interval_s: Annotated[float, Field(ge=0.05, le=1.0)] = 0.5  # status heartbeat: late subscribers catch up
+    http: str = "127.0.0.1:8080"  # the live web view, HOST:PORT (port 0: any free port); "" = off
+    http_token: str = ""  # required for a non-loopback `http`: clients send it as ?token= or Authorization: Bearer
+    foxglove: str = ""  # HOST:PORT of a Foxglove WebSocket server (needs the foxglove extra); "" = off
 
 
 class Settings(_Section):

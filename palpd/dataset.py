@@ -71,14 +71,16 @@ def rotated(scene, rotation_deg: float):
     return scene.model_copy(update={"placement": scene.placement.model_copy(update={"rotation_deg": rotation_deg})})
 
 
-def make_dataset(settings, scene, pattern: str, count: int, seed: int) -> tuple[list[tuple], dict]:
-    """Rows (x_mm, y_mm, stiffness_n_per_mm, tumor) of the fitted palpations, and the scan report."""
+def make_dataset(settings, scene, pattern: str, count: int, seed: int, progress=None) -> tuple[list[tuple], dict]:
+    """Rows (x_mm, y_mm, stiffness_n_per_mm, tumor) of the fitted palpations, and the scan report.
+
+    progress(done, total, probe) is called after each palpation."""
     from drivers.sim.scene import truth_lumps
     from palpd.bench import open_simulated_bench
     from palpd.scan import FixedPlan, run_scan
 
     points = pattern_points(pattern, scene.tissue.size_mm, count, seed)
-    report = run_scan(open_simulated_bench(settings, scene, seed=seed), settings, FixedPlan(points))
+    report = run_scan(open_simulated_bench(settings, scene, seed=seed), settings, FixedPlan(points), progress)
     fitted = [p for p in report["probes"] if p["stiffness_n_per_mm"] is not None]
     labels = label_tumor([p["xy_mm"] for p in fitted], truth_lumps(scene))
     return [(*p["xy_mm"], p["stiffness_n_per_mm"], t) for p, t in zip(fitted, labels)], report

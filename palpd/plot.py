@@ -1,41 +1,43 @@
-"""Pictures of a scan, like the seed paper's Figure 9: probes by stiffness, lumps found and true."""
+"""Pictures of a scan: what the learner believes (P(lump) with its 50 % contour and uncertainty band), the
+probes numbered in order (failed ones where they were aimed), the lumps with their uncertainty, and the truth.
+
+Colour scales never turn noise into structure: P(lump) is always drawn on [0, 1], and the stiffness scale spans
+at least MIN_CONTRAST of the median stiffness, so plain tissue stays one colour however small its noise.
+Each layer is its own function (draw_posterior, draw_probes, draw_lumps, draw_truth) so a picture can add
+layers (e.g. other lump shapes) without touching the others.
+"""
 from __future__ import annotations
 
 from pathlib import Path
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")  # files only; the daemon has no screen
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.colors import Normalize  # noqa: E402
 from matplotlib.patches import Circle, Rectangle  # noqa: E402
 
 from palpd.errors import PalpdError  # noqa: E402
 
+MIN_CONTRAST = 0.3  # the stiffness colour scale spans at least this fraction of the median (scan.min_contrast)
+LUMP, TRUTH, FAILED = "#d0009c", "k", "#c00000"
 
-def plot_scan(report: dict, size_mm: tuple[float, float], path: str | Path) -> None:
-    fig, ax = plt.subplots(figsize=(6.4, 5.6), dpi=110)
+
+def plot_scan(report: dict, size_mm: tuple[float, float], path: str | Path, posterior: dict | None = None) -> None:
+    """The scan's map as a PNG (or any format matplotlib writes, by the file's suffix)."""
+    fig, ax = plt.subplots(figsize=(7.6, 6.0), dpi=110)
     half_w, half_h = size_mm[0] / 2, size_mm[1] / 2
     ax.add_patch(Rectangle((-half_w, -half_h), size_mm[0], size_mm[1], fill=False, ec="0.6", ls=":"))
-    probes = [p for p in report["probes"] if p["stiffness_n_per_mm"] is not None]
-    if probes:
-        xs, ys = zip(*(p["xy_mm"] for p in probes))
-        points = ax.scatter(xs, ys, c=[p["stiffness_n_per_mm"] for p in probes], cmap="coolwarm", s=36,
-                            edgecolors="k", linewidths=0.3, zorder=3)
-        fig.colorbar(points, ax=ax, label="stiffness (N/mm)")
-    failed = [p["xy_mm"] for p in report["probes"] if p["stiffness_n_per_mm"] is None]
-    if failed:
-        ax.scatter(*zip(*failed), marker="x", c="k", s=30, label="no fit", zorder=3)
-    for i, true in enumerate(report.get("truth", {}).get("lumps", [])):
-        ax.add_patch(Circle(true["center_mm"], true["radius_mm"], fill=False, ec="k", lw=1.5,
-                            label="true lump" if i == 0 else None))
-    for i, lump in enumerate(report["lumps"]):
-        bx, by = zip(*lump["boundary_mm"])
-        ax.plot(bx, by, color="m", lw=2, label="estimated lump" if i == 0 else None)
-        ax.plot(*lump["center_mm"], "m+", ms=10, mew=2)
+    if posterior is not None:
+        draw_posterior(fig, ax, posterior)
+    draw_probes(fig, ax, report["probes"])
+    draw_truth(ax, report.get("truth", {}).get("lumps", []))
+    draw_lumps(ax, report["lumps"])
     ax.set(xlim=(-half_w - 5, half_w + 5), ylim=(-half_h - 5, half_h + 5), aspect="equal",
-           xlabel="x (mm)", ylabel="y (mm)", title=_title(report))
+           xlabel="x (mm, tissue frame)", ylabel="y (mm, tissue frame)", title=_title(report))
     if ax.get_legend_handles_labels()[0]:
-        ax.legend(loc="upper right", fontsize=8)
+        ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.1), ncol=3, fontsize=7, frameon=False)
     try:
         fig.savefig(path, bbox_inches="tight")
     except OSError as exc:
@@ -44,9 +46,86 @@ def plot_scan(report: dict, size_mm: tuple[float, float], path: str | Path) -> N
         plt.close(fig)
 
 
+def draw_posterior(fig, ax, posterior: dict) -> None:
+    """P(lump) on a fixed [0, 1] scale, its 50 % contour, and the band where 1 - c < P < c hatched."""
+    xs, ys, p = np.asarray(posterior["xs_mm"]), np.asarray(posterior["ys_mm"]), np.asarray(posterior["p_lump"])
+    c = posterior["confidence"]
+    image = ax.pcolormesh(xs, ys, p, cmap="Purples", vmin=0.0, vmax=1.0, shading="nearest", alpha=0.8, zorder=0)
+    fig.colorbar(image, ax=ax, label="P(lump)", fraction=0.046, pad=0.02)
+    if p.min() < 1.0 - c < p.max() or p.min() < c < p.max():
+        ax.contourf(xs, ys, p, levels=[1.0 - c, c], colors="none", hatches=["////"], zorder=1)
+        ax.plot([], [], color="0.4", lw=4, alpha=0.4, label=f"uncertain: {1 - c:.0%} < P < {c:.0%}")
+    if p.min() < 0.5 < p.max():
+        ax.contour(xs, ys, p, levels=[0.5], colors="k", linewidths=1.2, zorder=2)
+        ax.plot([], [], color="k", lw=1.2, label="P(lump) = 50 %")
+
+
+def stiffness_norm(values) -> Normalize:
+    """A colour scale over the stiffness values that spans at least MIN_CONTRAST of their median."""
+    k = np.asarray([v for v in values if v is not None], dtype=float)
+    if k.size == 0:
+        return Normalize(0.0, 1.0)
+    low, high, median = float(k.min()), float(k.max()), float(np.median(k))
+    span = max(high - low, MIN_CONTRAST * median, 1e-9)
+    middle = (low + high) / 2 if high - low >= MIN_CONTRAST * median else median
+    return Normalize(middle - span / 2, middle + span / 2)
+
+
+def draw_probes(fig, ax, probes: list[dict]) -> None:
+    """Fitted probes coloured by stiffness, failed ones as crosses where they were aimed; each numbered in order."""
+    fitted = [(i, p) for i, p in enumerate(probes, 1) if p["stiffness_n_per_mm"] is not None]
+    failed = [(i, p) for i, p in enumerate(probes, 1) if p["stiffness_n_per_mm"] is None]
+    if fitted:
+        xy = np.array([p["xy_mm"] for _, p in fitted])
+        points = ax.scatter(xy[:, 0], xy[:, 1], c=[p["stiffness_n_per_mm"] for _, p in fitted], cmap="viridis",
+                            norm=stiffness_norm(p["stiffness_n_per_mm"] for _, p in fitted), s=30,
+                            edgecolors="k", linewidths=0.4, zorder=4, label="probe (number: order)")
+        bar = fig.colorbar(points, ax=ax, label="stiffness (N/mm)", fraction=0.046, pad=0.16)
+        bar.ax.yaxis.set_label_position("left")  # clear of the P(lump) bar beside it
+        bar.ax.yaxis.set_ticks_position("left")
+    if failed:
+        aimed = np.array([p.get("target_xy_mm") or p["xy_mm"] for _, p in failed])
+        ax.scatter(aimed[:, 0], aimed[:, 1], marker="x", c=FAILED, s=36, linewidths=1.6, zorder=4,
+                   label="failed probe, where aimed")
+    for i, p in fitted + failed:
+        x, y = p["xy_mm"] if p["stiffness_n_per_mm"] is not None else (p.get("target_xy_mm") or p["xy_mm"])
+        ax.annotate(str(i), (x, y), xytext=(3, 3), textcoords="offset points", fontsize=5.5, zorder=5)
+
+
+def draw_lumps(ax, lumps: list[dict]) -> None:
+    """Each lump's 50 % boundary, its centre with a 1-sd disc, and its radius ± 1 sd as dashed circles."""
+    for i, lump in enumerate(lumps):
+        bx, by = zip(*lump["boundary_mm"])
+        ax.plot(bx + bx[:1], by + by[:1], color=LUMP, lw=2, zorder=6, label="estimated lump" if i == 0 else None)
+        centre, r, r_sd = lump["center_mm"], lump["radius_mm"], lump["radius_sd_mm"]
+        ax.add_patch(Circle(centre, max(lump["center_sd_mm"], 0.2), color=LUMP, alpha=0.35, zorder=6,
+                            label="centre ± 1 sd" if i == 0 else None))
+        for bound in (r - r_sd, r + r_sd):
+            if bound > 0:
+                ax.add_patch(Circle(centre, bound, fill=False, ec=LUMP, ls="--", lw=0.8, zorder=6,
+                                    label="radius ± 1 sd" if i == 0 and bound == r + r_sd else None))
+
+
+def draw_truth(ax, lumps: list[dict]) -> None:
+    for i, true in enumerate(lumps):
+        ax.add_patch(Circle(true["center_mm"], true["radius_mm"], fill=False, ec=TRUTH, lw=1.5, zorder=5,
+                            label="true lump" if i == 0 else None))
+
+
 def _title(report: dict) -> str:
-    title = f"{report.get('scene', '')} — {report['strategy']}, {report['palpations']} palpations"
+    source = report.get("scene") or (f"session {report['session']}" if report.get("session") else "palpd")
+    title = f"{source} — {report.get('strategy') or 'scan'}, {report['palpations']} palpations"
     metrics = report.get("metrics")
     if metrics and metrics.get("max_center_error_mm") is not None:
         title += f"\ncentre error {metrics['max_center_error_mm']:.2f} mm, radius error {metrics['max_radius_error_mm']:.2f} mm"
     return title
+
+
+def posterior_of(planner, report: dict, settings, size_mm) -> dict | None:
+    """The posterior behind a scan's picture: the active planner's own learner, else one fed the scan's probes."""
+    from palpd.posterior import learned_from_probes, posterior_grid
+
+    learner = getattr(planner, "learner", None)
+    if learner is None:
+        learner = learned_from_probes(report["probes"], size_mm, settings, report.get("seed") or 0)
+    return posterior_grid(learner)

@@ -34,10 +34,12 @@ def free_loopback_ports(context: zmq.Context, count: int) -> list[int]:
 class Daemon:
     def __init__(self, tmp_path: Path, scene: str = "paper.toml", realtime: bool = False, env: dict | None = None):
         self.context = zmq.Context()
-        events_port, commands_port = free_loopback_ports(self.context, 2)
+        events_port, commands_port, http_port = free_loopback_ports(self.context, 3)
         self.events, self.commands = f"tcp://127.0.0.1:{events_port}", f"tcp://127.0.0.1:{commands_port}"
+        self.http = f"http://127.0.0.1:{http_port}/"  # the live view (never the default 8080: others may run one)
         self.state_dir = tmp_path / "state"
         self.env = {**os.environ, "PALPD_BUS__EVENTS": self.events, "PALPD_BUS__COMMANDS": self.commands,
+                    "PALPD_DAEMON__HTTP": f"127.0.0.1:{http_port}",
                     "PALPD_DAEMON__STATE_DIR": str(self.state_dir), "PALPD_DAEMON__REALTIME": json.dumps(realtime),
                     "PALPD_DAEMON__SCENE": str(SCENES / scene), **(env or {})}
         self.process = None

@@ -1,36 +1,26 @@
-"""palpd's MCAP files read back with the official `mcap` package (a test-only validator of palpd's own writer)."""
+"""Recordings read back with the official `mcap` package's readers, as Foxglove and the mcap tools read them."""
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
 from mcap.reader import NonSeekingReader, make_reader
-from mcap.records import Channel, Schema
-from mcap.stream_reader import StreamReader
 
 
 def read_closed(path: Path) -> dict:
-    """A properly closed file through the seeking reader (footer first, as Foxglove opens files)."""
+    """A closed file through the seeking reader (summary first, as Foxglove opens files): header, summary,
+    topic -> JSON Schema of every channel, and (topic, payload, log_time) of every message in file order."""
     with open(path, "rb") as handle:
         reader = make_reader(handle)
-        header = reader.get_header()
+        header, summary = reader.get_header(), reader.get_summary()
+        assert summary is not None, f"{path} has no summary"
+        schemas = {channel.topic: json.loads(summary.schemas[channel.schema_id].data)
+                   for channel in summary.channels.values()}
+        assert all(summary.schemas[c.schema_id].encoding == "jsonschema" and c.message_encoding == "json"
+                   for c in summary.channels.values())
         messages = [(channel.topic, json.loads(message.data), message.log_time)
                     for _, channel, message in reader.iter_messages(log_time_order=False)]
-        handle.seek(0)
-        return {"header": header, "schemas": channel_schemas(StreamReader(handle)), "messages": messages}
-
-
-def channel_schemas(stream: StreamReader) -> dict[str, dict]:
-    """topic -> JSON Schema of every channel, including those no message was written to."""
-    schemas, channels = {}, {}
-    for record in stream.records:
-        if isinstance(record, Schema):
-            assert record.encoding == "jsonschema", record
-            schemas[record.id] = json.loads(record.data)
-        elif isinstance(record, Channel):
-            assert record.message_encoding == "json", record
-            channels[record.topic] = schemas[record.schema_id]
-    return channels
+    return {"header": header, "summary": summary, "schemas": schemas, "messages": messages}
 
 
 def read_streaming(path: Path) -> tuple[list[tuple[str, dict]], Exception | None]:

@@ -1,4 +1,4 @@
-"""palpd's MCAP writer checked by the official `mcap` reader: closed files, files cut by a crash, raw samples."""
+"""Recordings by the official `mcap` Writer: chunked, compressed, indexed; a file cut by a crash is sealed."""
 import math
 
 import pytest
@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from mcap_official import read_closed, read_streaming
 from palpd.bus.messages import EVENT_MODELS, SAMPLES_CHANNEL, RawSample, recording_schemas
-from palpd.daemon.mcap import McapWriter, read_messages, seal
+from palpd.daemon.mcap import McapWriter, is_closed, read_messages, seal
 
 
 def status(seq: int) -> dict:
@@ -21,12 +21,14 @@ def samples(count: int, t0_s: float = 10.0) -> list[dict]:
 
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
-    """A closed recording: two events, a batch of 1 kHz samples, one more event."""
+    """A closed recording of three chunks (the daemon finishes one each second): events and 1 kHz samples."""
     path = tmp_path_factory.mktemp("rec") / "recording-1.mcap"
     writer = McapWriter(path, recording_schemas())
     writer.write("status", status(0))
     writer.write("status", status(1))
+    writer.flush()
     writer.record_samples(samples(250))
+    writer.flush()
     writer.write("status", status(2))
     writer.close()
     return path
@@ -35,13 +37,20 @@ def recorded(tmp_path_factory):
 def test_the_official_reader_opens_a_closed_recording_with_every_schema_and_message(recorded):
     read = read_closed(recorded)
     assert read["header"].library == "palpd"
-    assert read["schemas"]["status"] == EVENT_MODELS["status"].model_json_schema()
-    assert read["schemas"][SAMPLES_CHANNEL] == RawSample.model_json_schema()
+    assert read["schemas"] == recording_schemas()  # every channel, messages or not, with its published schema
     topics = [topic for topic, _, _ in read["messages"]]
     assert topics == ["status"] * 2 + [SAMPLES_CHANNEL] * 250 + ["status"]
     assert [(t, p) for t, p, _ in read["messages"]] == read_messages(recorded)
     for topic, payload, _ in read["messages"]:
         (RawSample if topic == SAMPLES_CHANNEL else EVENT_MODELS[topic]).model_validate(payload)
+
+
+def test_a_recording_is_chunked_compressed_and_indexed(recorded):
+    summary = read_closed(recorded)["summary"]
+    assert len(summary.chunk_indexes) == 3 and summary.statistics.message_count == 253
+    assert all(c.compression == "zstd" and c.message_index_offsets for c in summary.chunk_indexes)
+    samples_chunk = max(summary.chunk_indexes, key=lambda c: c.uncompressed_size)
+    assert samples_chunk.compressed_size < samples_chunk.uncompressed_size / 4
 
 
 def test_a_batch_of_samples_keeps_its_1khz_spacing_in_log_time(recorded):
@@ -60,18 +69,31 @@ def test_a_malformed_sample_batch_is_refused_before_anything_is_written(tmp_path
     assert read_messages(tmp_path / "r.mcap") == []
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=25, deadline=None)
 @given(cut=st.floats(min_value=0.0, max_value=1.0))
-def test_a_file_cut_anywhere_reads_up_to_its_last_complete_message_and_seals(recorded, tmp_path_factory, cut):
+def test_a_file_cut_anywhere_keeps_every_finished_chunk_and_seals_to_an_indexed_file(recorded, tmp_path_factory,
+                                                                                     cut):
     data = recorded.read_bytes()
+    whole = read_messages(recorded)
+    summary = read_closed(recorded)["summary"]
     path = tmp_path_factory.mktemp("cut") / "recording-1.mcap"
-    path.write_bytes(data[:int(cut * (len(data) - 30))])  # never the ending: a crash left it open
-    ours = read_messages(path) if path.read_bytes()[:8] == data[:8] else []
+    end = int(cut * summary.chunk_indexes[-1].chunk_start_offset + 200)  # a crash never wrote the summary
+    path.write_bytes(data[:end])
+    kept = read_messages(path)
+    finished = [c for c in summary.chunk_indexes if c.chunk_start_offset + c.chunk_length <= end]
+    assert kept == whole[:len(kept)] and len(kept) >= sum(_messages_in(summary, c) for c in finished)
     official, error = read_streaming(path)
-    assert official == ours and error is not None  # the same prefix; the official reader then hits the torn tail
-    if seal(path):
-        assert [(t, p) for t, p, _ in read_closed(path)["messages"]] == ours
-        assert not seal(path)  # sealed once is closed
+    assert official == kept and error is not None  # the official streaming reader agrees, then hits the torn tail
+    assert seal(path) and is_closed(path)
+    sealed = read_closed(path)
+    assert [(t, p) for t, p, _ in sealed["messages"]] == kept
+    assert len(sealed["summary"].chunk_indexes) == (1 if kept else 0)
+    assert not seal(path)  # sealed once is closed
+
+
+def _messages_in(summary, chunk) -> int:
+    """Messages of the fixture's chunks, in order: two statuses, 250 samples, one status."""
+    return (2, 250, 1)[summary.chunk_indexes.index(chunk)]
 
 
 def test_sealing_leaves_a_closed_file_alone(recorded):

@@ -6,6 +6,7 @@ message; nothing a client sends can raise out of here.
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import dataclass
 from typing import Any
 
@@ -15,7 +16,10 @@ from pydantic import BaseModel, ValidationError
 from drivers.errors import describe_validation_error
 from palpd.bus.messages import COMMAND_ARGS, READ_ONLY_COMMANDS, Request
 from palpd.bus.publisher import bind_or_close
+from palpd.bus.replies import REPLY_MODELS
 from palpd.bus.security import LOCAL, OPERATOR
+
+log = logging.getLogger("palpd.commands")
 
 MAX_MESSAGE_BYTES = 1 << 16  # a bigger message disconnects its sender instead of eating memory
 MAX_ERROR_CHARS = 300
@@ -62,16 +66,25 @@ class CommandServer:
         return command
 
     def reply(self, command: Command, **body: Any) -> None:
-        self._send(command, {"id": command.id, "ok": True, **body})
+        """A successful reply, checked against its published schema (reply.CMD) before it goes out."""
+        try:
+            reply = REPLY_MODELS[command.cmd].model_validate({"id": command.id, "ok": True, **body})
+        except ValidationError as exc:  # a bug: say so, and never send what the schema does not promise
+            log.error("%s reply breaks its schema: %s", command.cmd, describe_validation_error("reply", exc))
+            self.fail(command, "internal", f"{command.cmd}: the daemon's reply broke its schema")
+            return
+        self._send(command, reply.model_dump_json().encode())
 
     def fail(self, command: Command, code: str, message: str) -> None:
         if len(message) > MAX_ERROR_CHARS:  # a huge bad value must not come back whole
             message = message[:MAX_ERROR_CHARS] + "..."
-        self._send(command, {"id": command.id, "ok": False, "error": {"code": code, "message": message}})
+        log.debug("%s refused (%s): %s", command.cmd or "request", code, message)
+        body = {"id": command.id, "ok": False, "error": {"code": code, "message": message}}
+        self._send(command, json.dumps(body).encode())
 
-    def _send(self, command: Command, body: dict) -> None:
+    def _send(self, command: Command, body: bytes) -> None:
         try:  # ROUTER drops replies to a vanished or saturated peer instead of blocking
-            self.socket.send_multipart([*command.envelope, json.dumps(body).encode()], zmq.NOBLOCK)
+            self.socket.send_multipart([*command.envelope, body], zmq.NOBLOCK)
         except zmq.ZMQError:
             pass
 

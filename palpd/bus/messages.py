@@ -1,8 +1,8 @@
 """Bus message models: every event payload carries v (schema version), seq and t.
 
-These models are the contract of DESIGN.md's "Bus" section; `palpd schema`
-prints their JSON Schemas. Add fields with defaults; bump SCHEMA_VERSION when a
-field changes meaning or goes away.
+These models are the contract of DESIGN.md's "Bus" section and docs/protocol.md;
+`palpd schema` prints their JSON Schemas (field docstrings become descriptions).
+Add fields with defaults; bump SCHEMA_VERSION when a field changes meaning or goes away.
 """
 from __future__ import annotations
 
@@ -13,64 +13,118 @@ from pydantic import BaseModel, ConfigDict, Field
 SCHEMA_VERSION = 1
 TOPICS = ("status", "palpation", "stiffness", "estimate", "fault")
 COMMANDS = ("status", "scan.start", "scan.stop", "estop", "reset", "estimate.get", "probe.at", "bias")
+# What palpd sends: unknown fields refused, field docstrings as schema descriptions, and every field
+# required in the published schema (a sent message always has them all, defaults included).
+SENT = ConfigDict(extra="forbid", use_attribute_docstrings=True, json_schema_serialization_defaults_required=True)
 
 
 class Event(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    """Fields every event carries."""
+
+    model_config = SENT
     v: int = SCHEMA_VERSION
+    """Schema version of the payload."""
     seq: int = Field(ge=0)
-    t: float  # seconds; robot (virtual or wall) time of the event
+    """Per-topic sequence number, from 0 at daemon start; a gap means events were dropped."""
+    t: float
+    """Robot time of the event in seconds (virtual in simulated time, else the wall clock)."""
 
 
 State = Literal["configure", "ready", "scanning", "fault", "stopped"]
 
 
 class Status(Event):
+    """The daemon's lifecycle state and progress. Published on every transition and as a heartbeat
+    (`daemon.status_interval_s`), so a subscriber joining at any time has it within a second."""
+
     state: State
+    """Lifecycle: configure -> ready -> scanning -> (ready | fault) ... -> stopped."""
     palpations: int = 0
+    """Palpations journaled in the current session."""
     message: str = ""
-    session: str = ""  # the session directory's name
-    expected_total: int = 0  # palpations the scan plans (0 when no scan)
-    resumable: bool = False  # an unfinished session waits for scan.start {"resume": true}
-    samples_lost: int = 0  # raw samples the recorder missed (the servo ring lapped it); should stay 0
+    """Why the daemon is in this state (e.g. "scan active", a fault code)."""
+    session: str = ""
+    """The current session directory's name ("" before the first scan)."""
+    expected_total: int = 0
+    """Palpations the running scan plans (0 when no scan runs)."""
+    resumable: bool = False
+    """An unfinished session waits for scan.start {"resume": true}."""
+    samples_lost: int = 0
+    """Raw samples the recorder missed (the servo ring lapped it); should stay 0."""
 
 
 class Palpation(Event):
+    """One palpation's loading trace, journaled (fsynced) before it is published."""
+
     index: int
+    """0-based index of the palpation in its session."""
     xy_mm: tuple[float, float]
+    """Where the probe touched, tissue frame."""
     depth_mm: list[float]
+    """Indentation below the contact point of each loading sample."""
     force_n: list[float]
+    """Normal force of each loading sample."""
+    target_xy_mm: Optional[tuple[float, float]] = None
+    """Where the probe was aimed (a failed palpation is reported there)."""
+    rejected: Optional[str] = None
+    """Why no stiffness was fitted (null: a `stiffness` event follows)."""
 
 
 class Stiffness(Event):
+    """The stiffness fitted to one palpation (absent when the fit was rejected)."""
+
     index: int
+    """The palpation's index."""
     xy_mm: tuple[float, float]
+    """Where the probe touched, tissue frame."""
     stiffness_n_per_mm: float
-    stiffness_sd_n_per_mm: float = 0.0  # fit uncertainty, the learner's observation noise
+    """Fitted stiffness at the reference depth."""
+    stiffness_sd_n_per_mm: float = 0.0
+    """Fit uncertainty (standard error), the learner's observation noise."""
     model: str = "linear"
+    """The force-displacement model the fit chose."""
 
 
 class LumpMsg(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    """One estimated lump with its uncertainty."""
+
+    model_config = SENT
     center_mm: tuple[float, float]
+    """Centre, tissue frame."""
     radius_mm: float
+    """Radius of the circle fitted to the 50 % boundary."""
     center_sd_mm: float
+    """Standard deviation of the centre."""
     radius_sd_mm: float
+    """Standard deviation of the radius."""
     boundary_mm: list[tuple[float, float]]
+    """The lump's 50 % boundary, a closed polygon [[x, y], ...]."""
 
 
 class Estimate(Event):
+    """The online learner's estimate, after each palpation and at the end of a scan."""
+
     points: int
+    """Stiffness points the estimate is made of."""
     lumps: list[LumpMsg]
+    """The lumps found (empty: none)."""
     next_probe_mm: Optional[tuple[float, float]] = None
+    """Where the learner would palpate next (null once it is sure enough)."""
     done: bool = False
+    """The scan that made this estimate has ended."""
     ambiguous_area_mm2: Optional[float] = None
+    """Area whose P(lump) lies between 1 - c and c (c: learner.confidence)."""
 
 
 class FaultMsg(Event):
+    """A latched safety fault: the robot stopped and needs `reset`."""
+
     code: str
+    """What tripped (e.g. force_cap, estop, servo_lost)."""
     message: str
+    """One line saying what happened."""
     last_samples: list[dict[str, Any]] = []
+    """The servo samples before the fault, when the servo process sent them."""
 
 
 EVENT_MODELS: dict[str, type[Event]] = {
@@ -81,12 +135,17 @@ EVENT_MODELS: dict[str, type[Event]] = {
 class RawSample(BaseModel):
     """One servo tick as recorded: MCAP channel `samples` only, never on the bus (1 kHz stays off the network)."""
 
-    model_config = ConfigDict(extra="forbid")
-    t: float  # robot time of the tick, s
+    model_config = SENT
+    t: float
+    """Robot time of the tick, s."""
     tip_mm: tuple[float, float, float]
-    force_n: tuple[float, float, float]  # tissue frame, bias-compensated
+    """Probe tip, tissue frame."""
+    force_n: tuple[float, float, float]
+    """Force on the tissue, tissue frame, bias-compensated."""
     normal_force_n: float
-    status: int = 0  # the robot's status bits
+    """Force along the tissue normal."""
+    status: int = 0
+    """The robot's status bits."""
 
 
 SAMPLES_CHANNEL = "samples"
@@ -95,11 +154,11 @@ SAMPLES_CHANNEL = "samples"
 class _Args(BaseModel):
     """Command arguments, validated from JSON in strict mode: "5" is not a number, 5 is."""
 
-    model_config = ConfigDict(extra="forbid", strict=True)
+    model_config = ConfigDict(extra="forbid", strict=True, use_attribute_docstrings=True)
 
 
 class NoArgs(_Args):
-    pass
+    """The command takes no arguments."""
 
 
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
@@ -107,20 +166,31 @@ PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
 class ScanStartArgs(_Args):
+    """Start a scan (a new session), or resume the unfinished one."""
+
     strategy: Literal["raster", "random", "active"] = "raster"
-    # None: 81 for raster/random; for active, learner.max_palpations (its own rule usually stops it sooner)
+    """Where to palpate: a raster, uniform random points, or where the online learner is least sure."""
     max_palpations: Optional[Annotated[int, Field(ge=1, le=10000)]] = None
+    """Budget; null: 81 for raster/random, learner.max_palpations for active (its own rule usually stops it sooner)."""
     seed: Annotated[int, Field(ge=0)] = 0
-    # The region to palpate (tissue frame); default: the whole palpable rectangle.
+    """Seed of random points and of the learner's first design."""
     center_mm: tuple[FiniteFloat, FiniteFloat] = (0.0, 0.0)
+    """Centre of the region to palpate, tissue frame."""
     size_mm: Optional[tuple[PositiveFloat, PositiveFloat]] = None
+    """Size of the region; null: the whole palpable rectangle."""
     depth_mm: Optional[Annotated[float, Field(gt=0, le=30)]] = None
+    """Indentation depth; null: palpation.depth_mm."""
     speed_mm_s: Optional[Annotated[float, Field(gt=0, le=100)]] = None
-    resume: bool = False  # continue the unfinished session instead of starting a new one
+    """Indentation speed; null: palpation.speed_mm_s."""
+    resume: bool = False
+    """Continue the unfinished session instead of starting a new one (other arguments are ignored)."""
 
 
 class ProbeAtArgs(_Args):
+    """One palpation at a point, journaled in the daemon's probes session."""
+
     xy_mm: tuple[FiniteFloat, FiniteFloat]
+    """The point, tissue frame."""
 
 
 COMMAND_ARGS: dict[str, type[BaseModel]] = {
@@ -131,35 +201,41 @@ READ_ONLY_COMMANDS = ("status", "estimate.get")  # what observers may send
 
 
 class Request(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    """A command request (DEALER -> ROUTER, one JSON frame)."""
+
+    model_config = SENT
     id: str | int
+    """Chosen by the client; the reply carries it back."""
     cmd: str
+    """The command's name."""
     args: dict[str, Any] = {}
+    """The command's arguments (schema: CMD.args)."""
 
 
 class ErrorBody(BaseModel):
+    """What went wrong."""
+
+    model_config = SENT
     code: Literal["bad_json", "bad_request", "unknown_command", "bad_args", "invalid_state", "forbidden",
                   "unavailable", "internal"]
+    """Machine-readable reason."""
     message: str
+    """One line for a person."""
 
 
 class ErrorReply(BaseModel):
+    """The reply to any request that failed."""
+
+    model_config = SENT
     id: str | int | None
+    """The request's id (null when the request was unreadable)."""
     ok: Literal[False] = False
     error: ErrorBody
 
 
-def json_schemas() -> dict[str, dict]:
-    """JSON Schema of every event topic and command (`palpd schema`, MCAP channels)."""
-    schemas = {topic: model.model_json_schema() for topic, model in EVENT_MODELS.items()}
-    schemas["request"] = Request.model_json_schema()
-    schemas["error"] = ErrorReply.model_json_schema()
-    for name, model in COMMAND_ARGS.items():
-        schemas[f"{name}.args"] = model.model_json_schema()
-    return schemas
-
-
 def recording_schemas() -> dict[str, dict]:
-    """The JSON Schema of every MCAP channel: the event topics and the raw samples."""
-    schemas = {topic: model.model_json_schema() for topic, model in EVENT_MODELS.items()}
-    return schemas | {SAMPLES_CHANNEL: RawSample.model_json_schema()}
+    """The JSON Schema of every MCAP channel: the event topics and the raw samples (as `palpd schema` prints them)."""
+    from palpd.bus.schemas import published_schema
+
+    schemas = {topic: published_schema(topic, model) for topic, model in EVENT_MODELS.items()}
+    return schemas | {SAMPLES_CHANNEL: published_schema(SAMPLES_CHANNEL, RawSample)}

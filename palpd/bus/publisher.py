@@ -38,5 +38,9 @@ class EventPublisher:
             pass
         return event
 
+    def last_seq(self, topic: str) -> int:
+        """The seq of the latest event published on a topic (0 before the first)."""
+        return max(self._seq[topic] - 1, 0)
+
     def close(self) -> None:
         self.socket.close(linger=0)

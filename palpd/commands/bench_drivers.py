@@ -18,19 +18,20 @@ PATHS = {"sim:// + DAQ": ("sim://", "sim"), "sim-direct": ("sim-direct", "sim-di
 
 def add_parser(subparsers):
     drivers = subparsers.add_parser("drivers", help="CPU per servo tick through the codec + DAQ path vs sim-direct")
-    drivers.add_argument("--scene", default="config/scenes/paper.toml", help="scene file (TOML)")
+    drivers.add_argument("--scene", default="paper", metavar="FILE|NAME",
+                         help="scene file (TOML) or shipped scene name (default: paper)")
     drivers.add_argument("--ticks", type=int, default=20000, metavar="N", help="ticks per path (default 20000)")
     drivers.add_argument("--json", action="store_true", help="print the figures as JSON")
     return drivers
 
 
 def run(args) -> int:
-    from drivers.sim.scene import load_scene
     from palpd.errors import UsageError
+    from palpd.shipped import load_scene_named
 
     if not 100 <= args.ticks <= 10_000_000:
         raise UsageError("--ticks must be in [100, 10000000]")
-    scene = load_scene(args.scene)
+    scene = load_scene_named(args.scene)
     for robot_url, sensor in PATHS.values():  # warm-up: imports and first calls stay out of the figures
         measure(scene, 100, robot_url, sensor)
     results = {name: measure(scene, args.ticks, robot_url, sensor) for name, (robot_url, sensor) in PATHS.items()}

@@ -15,8 +15,9 @@ CURVE = {"confidence": [0.7, 0.9, 0.99], "speed_mm_s": [5.0, 20.0, 40.0], "depth
 
 def add_parser(kinds):
     bench = kinds.add_parser("tradeoff", help="active vs raster vs random to the accuracy targets; speed-for-accuracy curve")
-    bench.add_argument("--scenes", nargs="+", default=["config/scenes"], metavar="PATH",
-                       help="scene files, or directories of *.toml scenes")
+    bench.add_argument("--scenes", nargs="+", metavar="PATH|NAME",
+                       help="scene files, shipped scene names or directories of *.toml scenes (default: every "
+                            "shipped scene, `palpd scenes`)")
     bench.add_argument("--seeds", type=int, default=3, metavar="N")
     bench.add_argument("--curve-scene", default="paper", metavar="NAME",
                        help="scene (by name) of the speed-for-accuracy curve, seed 0; 'none' to skip it")
@@ -28,14 +29,16 @@ def add_parser(kinds):
 def run(args) -> int:
     from drivers.sim.scene import load_scene
     from palpd.errors import UsageError
+    from palpd.shipped import resolve_scene, scene_names
 
-    paths = [q for p in map(Path, args.scenes) for q in (sorted(p.glob("*.toml")) if p.is_dir() else [p])]
+    specs = args.scenes or scene_names()
+    paths = [q for p in map(Path, specs) for q in (sorted(p.glob("*.toml")) if p.is_dir() else [resolve_scene(p)])]
     if not paths or args.seeds < 1:
-        raise UsageError(f"--scenes {' '.join(args.scenes)}: no *.toml scenes there (or --seeds below 1)")
+        raise UsageError(f"--scenes {' '.join(specs)}: no *.toml scenes there (or --seeds below 1)")
     scenes = [load_scene(p) for p in paths]
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    rows = [row for scene in scenes for seed in range(args.seeds) for row in _race(scene, seed)]
+    rows = _races(scenes, args.seeds)
     curve = [row for scene in scenes if scene.lump and scene.name == args.curve_scene for row in _curve(scene, 0)]
     _write_csv(out / "tradeoff.csv", rows)
     _write_csv(out / "curve.csv", curve)
@@ -45,14 +48,20 @@ def run(args) -> int:
     return 0
 
 
-def _race(scene, seed: int) -> list[dict]:
+def _races(scenes, seeds: int) -> list[dict]:
+    """Every strategy on every scene and seed, with a progress bar (a full run takes minutes)."""
+    from tqdm import tqdm
+
     from palpd.commands._tradeoff_runs import first_on_target_active, first_on_target_random, first_on_target_raster
 
+    runs = [(scene, seed, run) for scene in scenes for seed in range(seeds)
+            for run in (first_on_target_active, first_on_target_raster, first_on_target_random)]
     rows = []
-    for run in (first_on_target_active, first_on_target_raster, first_on_target_random):
-        rows.append(run(scene, seed))
-        print(f"{scene.name} seed {seed} {rows[-1]['strategy']}: palpations to target {rows[-1]['palpations']}, "
-              f"robot time {rows[-1]['robot_time_s']} s", file=sys.stderr, flush=True)  # a long run shows progress
+    with tqdm(runs, desc="tradeoff", unit="scan", disable=None) as bar:
+        for scene, seed, run in bar:
+            rows.append(run(scene, seed))
+            bar.write(f"{scene.name} seed {seed} {rows[-1]['strategy']}: palpations to target "
+                      f"{rows[-1]['palpations']}, robot time {rows[-1]['robot_time_s']} s", file=sys.stderr)
     return rows
 
 

@@ -6,7 +6,7 @@ import sys
 
 def add_parser(subparsers):
     dataset = subparsers.add_parser("dataset", help="palpate a simulated scene and write x, y, stiffness, tumor as CSV")
-    dataset.add_argument("--scene", required=True, help="scene file (TOML)")
+    dataset.add_argument("--scene", required=True, metavar="FILE|NAME", help="scene file (TOML) or shipped scene name")
     dataset.add_argument("--palpations", required=True, type=int, metavar="N")
     dataset.add_argument("--pattern", choices=["raster", "random", "manual"], default="manual",
                          help="where to palpate (default manual: uneven, hand-like)")
@@ -20,21 +20,26 @@ def add_parser(subparsers):
 def run(args) -> int:
     import math
 
-    from drivers.sim.scene import load_scene
     from palpd.config import load_settings
-    from palpd.dataset import make_dataset, rotated, to_csv
     from palpd.errors import UsageError
-    from palpd.files import write_text
+    from palpd.shipped import load_scene_named
 
     if args.palpations < 1:
         raise UsageError("--palpations must be at least 1")
     if args.rotation_deg is not None and not math.isfinite(args.rotation_deg):
         raise UsageError("--rotation-deg must be a finite number")
     settings = load_settings(args.config)
-    scene = load_scene(args.scene)
+    scene = load_scene_named(args.scene)
+    from palpd.dataset import make_dataset, rotated, to_csv
+    from palpd.files import write_text
+
     if args.rotation_deg is not None:
         scene = rotated(scene, args.rotation_deg)
-    rows, report = make_dataset(settings, scene, args.pattern, args.palpations, args.seed)
+    from tqdm import tqdm
+
+    with tqdm(total=args.palpations, desc=f"dataset {scene.name}", unit="palpation", disable=None) as bar:
+        rows, report = make_dataset(settings, scene, args.pattern, args.palpations, args.seed,
+                                    lambda done, total, probe: bar.update(done - bar.n))
     text = to_csv(rows)
     labels = [row[3] for row in rows]
     if args.out:

@@ -13,9 +13,10 @@ def run(args) -> int:
 
     from palpd.config import load_settings
     from palpd.errors import ConfigError
+
+    settings = load_settings(args.config)  # checked before the learner's numerics are imported
     from palpd.learner.service import run_service
 
-    settings = load_settings(args.config)
     try:
         return run_service(settings)
     except zmq.ZMQError as exc:

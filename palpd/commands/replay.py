@@ -13,9 +13,11 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     from palpd.config import load_settings
+
+    settings = load_settings(args.config)  # checked before the fitting and learning code is imported
     from palpd.daemon.replay import replay
 
-    result = replay(Path(args.session_dir), load_settings(args.config))
+    result = replay(Path(args.session_dir), settings)
     print(f"{result['palpations']} palpations refitted ({result['segmented']} re-segmented from raw samples), largest stiffness difference "
           f"{result['max_stiffness_difference_n_per_mm']:.2e} N/mm")
     for i, lump in enumerate(result["estimate"]["lumps"], 1):

@@ -3,14 +3,13 @@ from __future__ import annotations
 
 import sys
 
-from palpd.config import load_settings
-from palpd.errors import EXIT_FAILURE, UsageError
-from palpd.files import write_json
+from palpd.errors import EXIT_FAILURE
 
 
 def add_parser(subparsers):
     scan = subparsers.add_parser("scan", help="palpate a scene end to end and estimate its lumps")
-    scan.add_argument("--scene", required=True, help="scene file (TOML)")
+    scan.add_argument("--scene", required=True, metavar="FILE|NAME",
+                      help="scene file (TOML) or the name of a shipped scene (`palpd scenes`)")
     scan.add_argument("--strategy", choices=["active", "raster", "random"], help="where to palpate (default raster)")
     scan.add_argument("--max-palpations", type=int, metavar="N")
     scan.add_argument("--confidence", type=float, metavar="P", help="stopping confidence (active strategy)")
@@ -28,45 +27,29 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    # Heavy imports here, not at the top: `palpd --help` and argument errors stay fast.
-    from drivers.sim.scene import load_scene, truth_lumps
-    from palpd import metrics
-    from palpd.control.remote import open_servo_bench
-    from palpd.scan import plan, run_scan
+    from palpd.embedded import run_simulated_scan, scan_settings
+    from palpd.shipped import load_scene_named
 
-    if args.max_palpations is not None and args.max_palpations < 1:
-        raise UsageError("--max-palpations must be at least 1")
-    if args.train is not None and args.strategy != "active":
-        raise UsageError("--train teaches the active strategy's threshold; use it with --strategy active")
-    settings = load_settings(args.config).updated(
-        scan={"strategy": args.strategy, "max_palpations": args.max_palpations, "seed": args.seed},
-        palpation={"depth_mm": args.depth_mm, "speed_mm_s": args.speed_mm_s},
-        learner={"confidence": args.confidence, "training_set": args.train},
-    )
-    scene = load_scene(args.scene)
-    s = settings.scan
-    # The active budget has its own default (learner.max_palpations): it stops on its own well before a raster's.
-    budget = args.max_palpations or (settings.learner.max_palpations if s.strategy == "active" else s.max_palpations)
-    planner = plan(s.strategy, scene.tissue.size_mm, budget, s.seed, settings)
-    # The servo loop runs in its own process, as under `palpd serve`; one process for the whole scan.
-    bench = open_servo_bench(settings, scene, seed=s.seed, realtime=args.realtime)
-    _say(args, f"scan of scene {scene.name!r}: {s.strategy}, up to {planner.expected_total} palpations, "
-               f"depth {settings.palpation.depth_mm} mm at {settings.palpation.speed_mm_s} mm/s")
-    try:
-        report = {"scene": scene.name, **run_scan(bench, settings, planner, _progress_printer(args))}
-    finally:
-        bench.servo.close()
-    truth = truth_lumps(scene)
-    report["truth"] = {"lumps": truth, **report.get("truth", {})}
-    report["metrics"] = metrics.compare(truth, report["lumps"])
+    settings = scan_settings(args.config, args.strategy, args.max_palpations, args.seed, args.depth_mm,
+                             args.speed_mm_s, args.confidence, args.train)
+    scene = load_scene_named(args.scene)
+    # Heavy imports (scipy.stats, scikit-learn, matplotlib) only once arguments, config and scene are known good.
+    from palpd.files import write_json
+
+    def started(planner) -> None:
+        _say(args, f"scan of scene {scene.name!r}: {settings.scan.strategy}, up to {planner.expected_total} "
+                   f"palpations, depth {settings.palpation.depth_mm} mm at {settings.palpation.speed_mm_s} mm/s")
+
+    report, planner = run_simulated_scan(settings, scene, _progress_printer(args), args.realtime,
+                                         args.max_palpations, started)
     _say(args, _summary(report), always=True)
     if args.report:
         write_json(args.report, report)
         _say(args, f"report written to {args.report}")
     if args.plot:
-        from palpd.plot import plot_scan
+        from palpd.plot import plot_scan, posterior_of
 
-        plot_scan(report, scene.tissue.size_mm, args.plot)
+        plot_scan(report, scene.tissue.size_mm, args.plot, posterior_of(planner, report, settings, scene.tissue.size_mm))
         _say(args, f"map written to {args.plot}")
     if report["faults"]:
         fault = report["faults"][0]

@@ -7,16 +7,17 @@ from palpd.errors import UsageError
 
 
 def add_parser(subparsers):
-    schema = subparsers.add_parser("schema", help="print the JSON Schema of bus messages and commands")
+    schema = subparsers.add_parser("schema", help="print the JSON Schema of bus messages, commands and replies")
     schema.add_argument("topic", nargs="?", metavar="TOPIC",
-                        help="an event topic (status, palpation, ...), request, error or CMD.args; default: all")
+                        help="an event topic (status, palpation, ...), request, error, CMD.args or reply.CMD "
+                             "(e.g. reply.status); default: all")
     return schema
 
 
 def run(args) -> int:
-    from palpd.bus.messages import json_schemas
+    from palpd.bus.schemas import all_schemas
 
-    schemas = json_schemas()
+    schemas = all_schemas()
     if args.topic is None:
         print(json.dumps(schemas, indent=2))
         return 0

@@ -10,7 +10,7 @@ from palpd.errors import PalpdError, UsageError
 
 def add_parser(subparsers):
     simulate = subparsers.add_parser("simulate", help="serve simulated hardware for palpd or any other program")
-    simulate.add_argument("--scene", required=True, help="scene file (TOML)")
+    simulate.add_argument("--scene", required=True, metavar="FILE|NAME", help="scene file (TOML) or shipped scene name")
     simulate.add_argument("--bridge", default="tcp://127.0.0.1:0", metavar="tcp://HOST:PORT|pty",
                           help="where the Phantom bridge listens (port 0: any free port; default tcp://127.0.0.1:0)")
     simulate.add_argument("--netft", metavar="HOST:PORT", help="also serve a Net F/T RDT endpoint here")
@@ -22,12 +22,13 @@ def run(args) -> int:
     import signal
     import threading
 
+    from palpd.shipped import load_scene_named
+
+    scene = load_scene_named(args.scene)
     from drivers.clock import RealClock
-    from drivers.sim.scene import load_scene
     from drivers.sim.servers import SimulatorHost
     from drivers.sim.world import SimWorld
 
-    scene = load_scene(args.scene)
     host = SimulatorHost(SimWorld(scene, RealClock(), seed=args.seed))
     try:
         _add_endpoints(host, args)

@@ -1,10 +1,13 @@
 """What each command does to the supervisor, and which lifecycle states allow it."""
 from __future__ import annotations
 
+import logging
+
 from palpd.daemon.jobs import ProbeJob, RestartServoJob, ScanJob, region_problem, resolved_scan, session_plan
 from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.session import PROBES, Session
 
+log = logging.getLogger("palpd.daemon")
 ALLOWED_STATES = {
     "status": None, "estimate.get": None,  # None: any state
     "scan.start": ("ready",), "scan.stop": ("scanning",), "probe.at": ("ready",), "bias": ("ready",),
@@ -19,21 +22,30 @@ def dispatch(sup, command) -> None:
                                                     f" (only while {' or '.join(allowed)})")
         return
     handler = HANDLERS[command.cmd]
+    log.debug("command %s from %s", command.cmd, command.role or "unknown")
     try:
         handler(sup, command)
     except Exception as exc:  # a bug in one handler must not take the daemon down
+        log.exception("command %s failed", command.cmd)
         sup.commands.fail(command, "internal", f"{command.cmd} failed: {exc!r}")
 
 
 def status(sup, command) -> None:
-    sup.commands.reply(command, **sup.status_fields())
+    sup.commands.reply(command, **sup.status_event())
 
 
 def estimate_get(sup, command) -> None:
     estimate = sup.last_estimate.model_dump(mode="json") if sup.last_estimate is not None else None
-    probes = [{"xy_mm": list(xy), "stiffness_n_per_mm": k}
-              for xy, k in zip(sup.estimator.xy_mm, sup.estimator.k_n_per_mm)]
-    sup.commands.reply(command, estimate=estimate, probes=probes, tissue_size_mm=list(sup.bench.tissue_size_mm))
+    session = sup.session
+    sup.commands.reply(command, estimate=estimate, probes=probe_records(session.entries if session else []),
+                       tissue_size_mm=list(sup.bench.tissue_size_mm), session=session.name if session else "",
+                       map=sup.last_map)
+
+
+def probe_records(entries: list[dict]) -> list[dict]:
+    """A session's journaled palpations as reply.estimate.get's probes (failed ones where they were aimed)."""
+    return [{"index": e["index"], "target_xy_mm": e.get("target_xy_mm") or e["xy_mm"], "xy_mm": e["xy_mm"],
+             "stiffness_n_per_mm": e["stiffness_n_per_mm"], "rejected": e.get("rejected")} for e in entries]
 
 
 def scan_start(sup, command) -> None:
@@ -48,8 +60,10 @@ def scan_start(sup, command) -> None:
         return
     if sup.session is not None and sup.session.meta["status"] == "unfinished":
         sup.session.finish("abandoned")
+        log.info("session %s abandoned (a new scan started)", sup.session.name)
     scan = resolved_scan(scan, sup.bench.tissue_size_mm, sup.settings.learner.max_palpations)
     sup.session = Session.create(sup.sessions_dir, scan)
+    sup.show_map(None)
     sup.estimator = make_estimator(scan_settings(sup.settings, scan), scan, sup.bench.tissue_size_mm)
     _start(sup, command)
 
@@ -70,6 +84,9 @@ def _start(sup, command) -> None:
     sup.close_recording()  # the probes' recording, if single palpations came first
     sup.open_recording(sup.session)  # names itself in the job, whose journal entries point at it
     sup.worker.submit(sup.job)
+    log.info("session %s: %s scan %s, up to %d palpations (%d done), recording %s", sup.session.name,
+             scan["strategy"], "resumed" if command.args.resume else "started", planner.expected_total,
+             len(sup.session.entries), sup.job.recording)
     sup.set_state("scanning", f"scan {scan['strategy']}")
     sup.commands.reply(command, session=sup.session.name, expected_total=planner.expected_total,
                        already_done=len(sup.session.entries))
@@ -85,7 +102,7 @@ def estop(sup, command) -> None:
     sup.bench.servo.request_estop()  # the servo process trips on its next tick; any later motion trips at once
     if sup.job is None:
         sup.set_state("fault", "estop")
-        sup.publish("fault", sup.bench.clock.now(), code="estop", message="emergency stop requested")
+        sup.publish("fault", sup.now(), code="estop", message="emergency stop requested")
     sup.commands.reply(command, estop=True)
 
 
@@ -137,8 +154,11 @@ def job_ended(sup, fault: dict | None) -> None:
         sup.session.finish("finished")
     elif isinstance(job, ScanJob) and job.stop_reason == "stopped":
         sup.session.finish("stopped")
+    if isinstance(job, ScanJob):
+        log.info("session %s %s after %d palpations", sup.session.name, sup.session.meta["status"],
+                 len(sup.session.entries))
     if fault is not None:
-        sup.publish("fault", sup.bench.clock.now(), code=fault["code"], message=fault["message"])
+        sup.publish("fault", sup.now(), code=fault["code"], message=fault["message"])
         sup.set_state("fault", fault["code"])
     else:
         sup.set_state("ready", "scan finished" if getattr(job, "finished", False) else

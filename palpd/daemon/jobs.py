@@ -53,7 +53,7 @@ def journal_entry(index: int, probe, t_s: float) -> dict:
 def publish_entry(worker, entry: dict) -> None:
     """The palpation and (when the fit held) its stiffness on the bus."""
     worker.event("palpation", index=entry["index"], xy_mm=entry["xy_mm"], depth_mm=entry["depth_mm"],
-                 force_n=entry["force_n"])
+                 force_n=entry["force_n"], target_xy_mm=entry["target_xy_mm"], rejected=entry["rejected"])
     if entry["stiffness_n_per_mm"] is not None:
         worker.event("stiffness", index=entry["index"], xy_mm=entry["xy_mm"],
                      stiffness_n_per_mm=entry["stiffness_n_per_mm"],
@@ -72,6 +72,7 @@ class ScanJob:
         report = worker.scan(self.settings, self.planner, lambda done, total, probe: self._on_probe(worker, probe))
         self.finished = not report["faults"] and not worker.stop_requested.is_set()
         worker.event("estimate", **self.estimator.estimate(), done=self.finished)
+        worker.send({"kind": "map", "map": self.estimator.posterior_map()})
 
     def _on_probe(self, worker, probe) -> None:
         entry = journal_entry(len(self.session.entries), probe, worker.bench.clock.now())
@@ -80,6 +81,7 @@ class ScanJob:
         self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0)
         publish_entry(worker, entry)
         worker.event("estimate", **self.estimator.estimate())
+        worker.send({"kind": "map", "map": self.estimator.posterior_map()})  # made here: the learner is ours
 
 
 class ProbeJob:

@@ -9,6 +9,7 @@ points go in and lumps and probes come out shifted by the region's centre.
 from __future__ import annotations
 
 from palpd.learner.planner import make_learner
+from palpd.posterior import MAP_CELLS_PER_SIDE, posterior_grid
 
 DEFAULT_MAX_PALPATIONS = 81  # raster and random, when scan.start does not say
 
@@ -49,6 +50,16 @@ class LearnerEstimator:
         """Fields of the bus `estimate` event."""
         return {"points": len(self.k_n_per_mm), "lumps": [self._shifted(lump.as_dict()) for lump in self.learner.lumps()],
                 "next_probe_mm": self.next_probe(), "ambiguous_area_mm2": self.learner.ambiguous_area_mm2()}
+
+    def posterior_map(self, max_cells_per_side: int = MAP_CELLS_PER_SIDE) -> dict | None:
+        """The learner's posterior on (at most) a max × max subgrid, tissue frame: reply.estimate.get's `map`,
+        what the live view and `palpctl plot` draw. None before the first stiffness point."""
+        grid = posterior_grid(self.learner, max_cells_per_side)
+        if grid is None:
+            return None
+        grid["xs_mm"] = [round(x + self.cx, 3) for x in grid["xs_mm"]]
+        grid["ys_mm"] = [round(y + self.cy, 3) for y in grid["ys_mm"]]
+        return grid
 
     def _shifted(self, lump: dict) -> dict:
         x, y = lump["center_mm"]

@@ -1,58 +1,48 @@
-"""A small MCAP writer and reader (unchunked, JSON messages with JSON-Schema channels, as Foxglove reads).
+"""Recordings: MCAP files written by the official `mcap` Writer (chunked, zstd-compressed, indexed, JSON-Schema
+channels, as Foxglove and every MCAP tool read them).
 
-Written here rather than adding the `mcap` package: the format needs ~100 lines
-for what palpd records, and the reader must tolerate a file cut short by a
-crash (no DataEnd/Footer), which is exactly what crash recovery reads, and
-`seal` closes such a file so any MCAP reader opens it. The tests check every
-file against the official `mcap` reader.
-Spec: https://mcap.dev/spec — records are opcode (u8), length (u64 LE), content.
+The chunk under way is finished and flushed to the OS at least once a second, so
+a crash loses at most that second of the recording (the palpation journal, fsynced
+per palpation, loses nothing). A file a crash cut short has no summary: `seal`
+rewrites what it holds (every complete chunk) into a properly indexed file, so
+`mcap.reader.make_reader` reads every recording, including a recovered one.
 """
 from __future__ import annotations
 
 import json
 import os
-import struct
 import time
 from pathlib import Path
 from typing import Mapping, Sequence
 
+from mcap.reader import make_reader
+from mcap.records import Channel, Message, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, Writer
+
 from palpd.bus.messages import SAMPLES_CHANNEL, RawSample
 
 MAGIC = b"\x89MCAP0\r\n"
-OP_HEADER, OP_FOOTER, OP_SCHEMA, OP_CHANNEL, OP_MESSAGE, OP_DATA_END = 0x01, 0x02, 0x03, 0x04, 0x05, 0x0F
 FLUSH_INTERVAL_S = 1.0  # a crash loses at most this much of the recording
-
-
-def _string(text: str) -> bytes:
-    data = text.encode()
-    return struct.pack("<I", len(data)) + data
-
-
-def _record(opcode: int, content: bytes) -> bytes:
-    return struct.pack("<BQ", opcode, len(content)) + content
+CHUNK_BYTES = 1 << 20  # a chunk also ends when it grows this big (before a second is up)
 
 
 class McapWriter:
-    """Appends messages; flushes to the OS at least once a second (and on close)."""
+    """Appends JSON messages to channels named by topic; finishes a chunk at least once a second."""
 
     def __init__(self, path: Path, schemas: dict[str, dict], library: str = "palpd") -> None:
         self._file = open(path, "wb")
-        self._file.write(MAGIC + _record(OP_HEADER, _string("") + _string(library)))
-        self._channels: dict[str, int] = {}
+        self._writer = Writer(self._file, chunk_size=CHUNK_BYTES, compression=CompressionType.ZSTD)
+        self._writer.start(profile="", library=library)
+        self._channels = {topic: self._register(topic, schema) for topic, schema in schemas.items()}
         self._sequence = 0
         self._flushed_at = time.monotonic()
         self._samples_logged_to_s = 0.0
-        for channel_id, (topic, schema) in enumerate(schemas.items(), start=1):
-            self._add_channel(channel_id, topic, schema)
 
-    def _add_channel(self, channel_id: int, topic: str, schema: dict) -> None:
-        schema_bytes = json.dumps(schema).encode()
-        self._file.write(_record(OP_SCHEMA, struct.pack("<H", channel_id) + _string(schema.get("title", topic))
-                                 + _string("jsonschema") + struct.pack("<I", len(schema_bytes)) + schema_bytes))
-        metadata = b""
-        self._file.write(_record(OP_CHANNEL, struct.pack("<HH", channel_id, channel_id) + _string(topic)
-                                 + _string("json") + struct.pack("<I", len(metadata)) + metadata))
-        self._channels[topic] = channel_id
+    def _register(self, topic: str, schema: dict) -> int:
+        schema_id = self._writer.register_schema(name=schema.get("title", topic), encoding="jsonschema",
+                                                 data=json.dumps(schema).encode())
+        return self._writer.register_channel(topic=topic, message_encoding="json", schema_id=schema_id)
 
     def write(self, topic: str, payload: dict, log_time_s: float | None = None) -> None:
         self._message(topic, json.dumps(payload).encode(), time.time() if log_time_s is None else log_time_s)
@@ -78,8 +68,8 @@ class McapWriter:
 
     def _message(self, topic: str, data: bytes, log_time_s: float) -> None:
         ns = int(log_time_s * 1e9)
-        header = struct.pack("<HIQQ", self._channels[topic], self._sequence & 0xFFFFFFFF, ns, ns)
-        self._file.write(_record(OP_MESSAGE, header + data))
+        self._writer.add_message(channel_id=self._channels[topic], log_time=ns, data=data, publish_time=ns,
+                                 sequence=self._sequence & 0xFFFFFFFF)
         self._sequence += 1
 
     def flush_if_due(self) -> None:
@@ -87,63 +77,71 @@ class McapWriter:
             self.flush()
 
     def flush(self) -> None:
-        self._file.flush()
+        """Finish the chunk under way and hand it to the OS."""
+        self._writer.flush()
         self._flushed_at = time.monotonic()
 
     def close(self) -> None:
         if self._file.closed:
             return
-        self._file.write(ENDING)
+        self._writer.finish()  # the last chunk, then the summary: indexes, statistics, footer
         self._file.close()
 
 
-# DataEnd (no CRC), a Footer without summary section, and the closing magic.
-ENDING = _record(OP_DATA_END, struct.pack("<I", 0)) + _record(OP_FOOTER, struct.pack("<QQI", 0, 0, 0)) + MAGIC
+def is_closed(path: Path) -> bool:
+    """True when the file has its summary (chunk indexes): it was closed, or sealed."""
+    try:
+        with open(path, "rb") as handle:
+            summary = make_reader(handle).get_summary()
+    except Exception:  # no footer, a torn summary...: the reader raises its own types (McapError, struct.error)
+        return False
+    return summary is not None and bool(summary.chunk_indexes or not summary.statistics.message_count)
 
 
-def _records(data: bytes):
-    """(opcode, content start, content end) of every complete record up to the Footer."""
-    offset = len(MAGIC)
-    while offset + 9 <= len(data):
-        opcode, length = struct.unpack_from("<BQ", data, offset)
-        start, offset = offset + 9, offset + 9 + length
-        if offset > len(data) or opcode == OP_FOOTER:
-            return
-        yield opcode, start, offset
+def _complete_records(path: Path) -> tuple[dict[int, Schema], dict[int, Channel], list[Message]]:
+    """Schemas, channels and messages of every complete chunk, in file order; a torn tail is where it stops."""
+    schemas, channels, messages = {}, {}, []
+    with open(path, "rb") as handle:
+        try:
+            for record in StreamReader(handle).records:
+                if isinstance(record, Schema):
+                    schemas[record.id] = record
+                elif isinstance(record, Channel):
+                    channels[record.id] = record
+                elif isinstance(record, Message):
+                    messages.append(record)
+        except Exception:  # the torn tail: EndOfFile, a bad CRC, a bogus record length... (the reader's own types)
+            pass
+    return schemas, channels, messages
 
 
 def seal(path: Path) -> bool:
-    """End a recording a crash cut short (torn last record dropped), so any MCAP reader opens it.
+    """Rewrite a recording a crash cut short (every complete chunk kept) as a closed, indexed file.
 
-    True if the file needed it; a closed file, or one without even its header, is left alone.
+    True if the file needed it; a closed file is left alone, and so is one without even its header.
     """
-    data = Path(path).read_bytes()
-    records = list(_records(data)) if data.startswith(MAGIC) else []
-    if data.endswith(ENDING) or not records or records[0][0] != OP_HEADER:
-        return False
-    end = max(stop for opcode, _, stop in records if opcode != OP_DATA_END)
-    with open(path, "r+b") as handle:
-        handle.truncate(end)
-        handle.seek(end)
-        handle.write(ENDING)
+    path = Path(path)
+    with open(path, "rb") as handle:
+        if handle.read(len(MAGIC)) != MAGIC or is_closed(path):
+            return False
+    schemas, channels, messages = _complete_records(path)
+    temporary = path.with_name(f".{path.name}.sealing")
+    with open(temporary, "wb") as handle:
+        writer = Writer(handle, chunk_size=CHUNK_BYTES, compression=CompressionType.ZSTD)
+        writer.start(profile="", library="palpd (sealed after a crash)")
+        schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in schemas.items()}
+        channel_ids = {cid: writer.register_channel(c.topic, c.message_encoding, schema_ids.get(c.schema_id, 0),
+                                                    c.metadata) for cid, c in channels.items()}
+        for m in messages:
+            writer.add_message(channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence)
+        writer.finish()
         handle.flush()
         os.fsync(handle.fileno())
+    os.replace(temporary, path)
     return True
 
 
 def read_messages(path: Path) -> list[tuple[str, dict]]:
-    """(topic, payload) of every complete message, in order; a truncated tail (crash) is ignored."""
-    data = Path(path).read_bytes()
-    if not data.startswith(MAGIC):
-        raise ValueError(f"{path}: not an MCAP file")
-    topics: dict[int, str] = {}
-    messages = []
-    for opcode, start, offset in _records(data):
-        if opcode == OP_CHANNEL:
-            channel_id, _ = struct.unpack_from("<HH", data, start)
-            (topic_len,) = struct.unpack_from("<I", data, start + 4)
-            topics[channel_id] = data[start + 8:start + 8 + topic_len].decode()
-        elif opcode == OP_MESSAGE:
-            (channel_id,) = struct.unpack_from("<H", data, start)
-            messages.append((topics[channel_id], json.loads(data[start + 22:offset])))
-    return messages
+    """(topic, payload) of every complete message, in file order; a torn tail (crash) is ignored."""
+    _, channels, messages = _complete_records(Path(path))
+    return [(channels[m.channel_id].topic, json.loads(m.data)) for m in messages]

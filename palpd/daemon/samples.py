@@ -2,11 +2,13 @@
 
 The ring holds 16 s of ticks and the supervisor turns at least every 100 ms,
 so nothing should be lost; if the reader ever falls a ring behind, the loss is
-counted (status `samples_lost`) and said on stderr, never hidden.
+counted (status `samples_lost`) and logged, never hidden.
 """
 from __future__ import annotations
 
-import sys
+import logging
+
+log = logging.getLogger("palpd.recorder")
 
 
 def raw_samples(ring_samples) -> list[dict]:
@@ -33,8 +35,7 @@ class SampleDrain:
         samples, self.next_index, lost = servo.read_samples(self.next_index)
         if lost:
             self.lost += lost
-            print(f"palpd: recorder: {lost} raw samples lost (the ring was overwritten before it was read)",
-                  file=sys.stderr, flush=True)
+            log.warning("%d raw samples lost (the servo ring was overwritten before it was read)", lost)
         if len(samples):
             recording.record_samples(raw_samples(samples))
             self.recorded += len(samples)

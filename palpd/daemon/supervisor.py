@@ -7,13 +7,14 @@ mid-palpation.
 """
 from __future__ import annotations
 
+import logging
 import signal
 import time
 
 import zmq
 
 from palpd.bus.commands import CommandServer
-from palpd.bus.messages import recording_schemas
+from palpd.bus.messages import SCHEMA_VERSION, recording_schemas
 from palpd.bus.publisher import EventPublisher
 from palpd.bus.security import Security
 from palpd.daemon import handlers
@@ -23,11 +24,13 @@ from palpd.daemon.mcap import McapWriter, seal
 from palpd.daemon.notify import Notifier
 from palpd.daemon.samples import SampleDrain
 from palpd.daemon.session import ensure_writable, find_unfinished, state_directory
+from palpd.daemon.viewers import open_viewers
 from palpd.daemon.worker import WORKER_ENDPOINT, ScanWorker
 from palpd.errors import PalpdError
 
 POLL_MS = 100
 QUIT_GRACE_S = 5.0
+log = logging.getLogger("palpd.daemon")
 
 
 class Supervisor:
@@ -44,20 +47,22 @@ class Supervisor:
         self.estimator = make_estimator(settings, None, bench.tissue_size_mm)
         self.samples = SampleDrain()
         self.last_estimate = None
+        self.last_map = None  # the learner's posterior grid (reply.estimate.get's map), made by the worker
+        self.viewers = []  # the live web view and the Foxglove stream: they see every event
         self._terminating = False
         self._last_watchdog = 0.0
+        self._last_status_s = 0.0
+        self._now_s = 0.0
 
     # Start and stop -----------------------------------------------------------------------------
 
-    def open(self) -> None:
-        self.security.start(self.context)
-        try:
-            self.events = EventPublisher(self.context, self.settings.bus.events,
-                                         self.settings.bus.high_water_mark, self.security)
-            self.commands = CommandServer(self.context, self.settings.bus.commands, self.security)
-        except zmq.ZMQError as exc:
-            self.close()
-            raise PalpdError(f"bus: cannot bind: {exc}") from None
+    def open(self, announce=None) -> None:
+        """Bind every endpoint; then announce() (the start-up log lines: nothing is said before a refusal,
+        which stays one line), then start the worker, recover and go ready."""
+        self._bind()
+        if announce is not None:
+            announce()
+        self._log_endpoints()
         self.inbox = self.context.socket(zmq.PULL)
         self.inbox.bind(WORKER_ENDPOINT)
         self.worker = ScanWorker(self.context, self.bench, self.settings)
@@ -66,21 +71,52 @@ class Supervisor:
         self.set_state("ready", "recovered an unfinished session" if self.session else "")
         self.notifier.ready(self.status_line())
 
+    def _bind(self) -> None:
+        self.security.start(self.context)
+        try:
+            self.events = EventPublisher(self.context, self.settings.bus.events,
+                                         self.settings.bus.high_water_mark, self.security)
+            self.commands = CommandServer(self.context, self.settings.bus.commands, self.security)
+            self.viewers = open_viewers(self.settings.daemon, self.bench.tissue_size_mm)
+        except zmq.ZMQError as exc:
+            self.close()
+            raise PalpdError(f"bus: cannot bind: {exc}") from None
+        except PalpdError:
+            self.close()
+            raise
+
+    def _log_endpoints(self) -> None:
+        bus = self.settings.bus
+        curve = "CURVE" if self.security.secret_key is not None else "loopback/ipc only, no CURVE"
+        log.info("events (PUB) on %s, commands (ROUTER) on %s (%s)", bus.events, bus.commands, curve)
+        for viewer in self.viewers:
+            log.info("%s on %s", viewer.what, viewer.url)
+        log.info("sessions in %s", self.sessions_dir)
+
     def _recover(self) -> None:
         session = find_unfinished(self.sessions_dir)
         if session is None:
             return
         self.session = session
         for recording in session.path.glob("recording-*.mcap"):
-            seal(recording)  # the crashed run's file, ended properly so Foxglove opens it
+            if seal(recording):  # the crashed run's file, ended properly so Foxglove opens it
+                log.warning("session %s: %s was cut short; sealed what it held", session.name, recording.name)
+        log.info("session %s is unfinished (%d palpations journaled): `scan.start {\"resume\": true}` continues it",
+                 session.name, len(session.entries))
         scan = session.meta["scan"] = resolved_scan(session.meta["scan"], self.bench.tissue_size_mm,
                                                     self.settings.learner.max_palpations)
         self.estimator = make_estimator(scan_settings(self.settings, scan), scan, self.bench.tissue_size_mm)
         for entry in session.entries:  # the learner relearns the journal in order: where it left off
             self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0)
-        self.publish("estimate", self.bench.clock.now(), **self.estimator.estimate())
+        self.publish("estimate", self.now(), **self.estimator.estimate())
+        self.show_map(self.estimator.posterior_map())
+        for viewer in self.viewers:
+            viewer.probes(handlers.probe_records(session.entries), session.name)
 
     def close(self) -> None:
+        for viewer in self.viewers:
+            viewer.close()
+        self.viewers = []
         for name in ("commands", "events", "inbox"):
             if hasattr(self, name):
                 getattr(self, name).close()
@@ -117,13 +153,15 @@ class Supervisor:
             self.recording.flush_if_due()
         if self.job is None and self.state == "ready":
             self._check_idle_servo()
+        if time.monotonic() - self._last_status_s >= self.settings.daemon.status_interval_s:
+            self.publish("status", self.now(), **self.status_fields())  # the heartbeat
         self._ping_watchdog()
 
     def _check_idle_servo(self) -> None:
         """A fault the servo process latched between jobs (bridge e-stop, lost child) is published at once."""
         fault = self.bench.servo.check_idle()
         if fault is not None:
-            self.publish("fault", self.bench.clock.now(), code=fault.code, message=fault.message)
+            self.publish("fault", self.now(), code=fault.code, message=fault.message)
             self.set_state("fault", fault.code)
 
     def _drain_worker(self) -> None:
@@ -131,6 +169,8 @@ class Supervisor:
             message = self.inbox.recv_pyobj()
             if message["kind"] == "event":
                 self.publish(message["topic"], message["t"], **message["fields"])
+            elif message["kind"] == "map":
+                self.show_map(message["map"])
             elif message["kind"] == "job_end":
                 handlers.job_ended(self, message["fault"])
 
@@ -146,6 +186,7 @@ class Supervisor:
 
     def _on_signal(self, signum, frame) -> None:
         self._terminating = True
+        log.info("%s: stopping", signal.Signals(signum).name)
 
     def _shut_down(self, poller) -> None:
         """Let the palpation under way finish (or abort it), motors off, recordings flushed."""
@@ -175,15 +216,42 @@ class Supervisor:
 
     def publish(self, topic: str, t: float, **fields) -> None:
         event = self.events.publish(topic, t, **fields)
+        payload = event.model_dump(mode="json")
         if topic == "estimate":
             self.last_estimate = event
+        elif topic == "status":
+            self._last_status_s = time.monotonic()
+        elif topic == "fault":
+            log.error("fault %s: %s", event.code, event.message)
         if self.recording is not None:
-            self.recording.write(topic, event.model_dump(mode="json"))
+            self.recording.write(topic, payload)
+        for viewer in self.viewers:
+            viewer.event(topic, payload)
+
+    def show_map(self, posterior: dict | None) -> None:
+        self.last_map = posterior
+        for viewer in self.viewers:
+            viewer.map(posterior)
 
     def set_state(self, state: str, message: str = "") -> None:
+        if (state, message) != (self.state, self.message):
+            log.info("state %s -> %s%s", self.state, state, f" ({message})" if message else "")
         self.state, self.message = state, message
-        self.publish("status", self.bench.clock.now(), **self.status_fields())
+        self.publish("status", self.now(), **self.status_fields())
         self.notifier.status(self.status_line())
+
+    def now(self) -> float:
+        """Robot time; while a lost servo process's shared memory is being closed (reset starts a new one on
+        the worker thread), the last time it showed: a status request or heartbeat must never fail on it."""
+        try:
+            self._now_s = self.bench.clock.now()
+        except (TypeError, ValueError, AttributeError):
+            pass
+        return self._now_s
+
+    def status_event(self) -> dict:
+        """The current status as a `status` event carries it (seq: the latest status event's)."""
+        return {"v": SCHEMA_VERSION, "seq": self.events.last_seq("status"), "t": self.now(), **self.status_fields()}
 
     def status_fields(self) -> dict:
         session = self.session

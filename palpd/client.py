@@ -1,0 +1,192 @@
+"""A Python client for a running `palpd serve`: commands over its ROUTER socket, typed events from its PUB socket.
+
+    from palpd.client import Client
+
+    with Client() as daemon:                      # endpoints: bus settings (PALPD_BUS__* overrides them)
+        daemon.scan(strategy="active", wait=True)
+        print(daemon.estimate().estimate.lumps)
+
+Replies and events are the pydantic models of palpd.bus (their JSON Schemas: `palpd schema`).
+A refused command raises CommandRefused (with the daemon's error code); no answer in time, TimeoutError.
+"""
+from __future__ import annotations
+
+import json
+import time
+import uuid
+from pathlib import Path
+from typing import Iterator
+
+import zmq
+from pydantic import ValidationError
+
+from palpd.bus.messages import EVENT_MODELS, Event
+from palpd.bus.replies import REPLY_MODELS, EstimateGetReply, Reply, ScanStartReply, StatusReply
+from palpd.errors import PalpdError
+
+DEFAULT_TIMEOUT_S = 3.0
+SCAN_ENDED = ("ready", "fault", "stopped")
+
+
+class CommandRefused(PalpdError):
+    """The daemon answered {"ok": false}: `code` says why (invalid_state, bad_args, forbidden, ...)."""
+
+    def __init__(self, cmd: str, code: str, message: str) -> None:
+        super().__init__(f"{cmd} refused ({code}): {message}")
+        self.cmd, self.code, self.message = cmd, code, message
+
+
+def curve_keys(server_key: str | Path | bytes, key: str | Path) -> dict:
+    """Socket options for CURVE: the daemon's public key (file or z85) and this client's key pair file."""
+    import zmq.auth
+
+    if isinstance(server_key, bytes):
+        server_public = server_key
+    else:
+        server_public, _ = zmq.auth.load_certificate(str(server_key))
+    public, secret = zmq.auth.load_certificate(str(key))
+    if secret is None:
+        raise ValueError(f"{key} holds no secret key (use NAME.key_secret from `palpd keygen`)")
+    return {"curve_serverkey": server_public, "curve_publickey": public, "curve_secretkey": secret}
+
+
+class Client:
+    """Commands and events of one daemon. CURVE: pass `server_key` (the daemon's public key) and `key`
+    (this client's NAME.key_secret); endpoints default to the bus settings (`config` file, PALPD_ variables)."""
+
+    def __init__(self, commands: str | None = None, events: str | None = None, *, timeout_s: float = DEFAULT_TIMEOUT_S,
+                 server_key: str | Path | bytes | None = None, key: str | Path | None = None,
+                 config: str | Path | None = None) -> None:
+        if commands is None or events is None:
+            from palpd.config import load_settings
+
+            bus = load_settings(config).bus
+            commands, events = commands or bus.commands, events or bus.events
+        if (server_key is None) != (key is None):
+            raise ValueError("CURVE needs both server_key (the daemon's public key) and key (this client's)")
+        self.commands_endpoint, self.events_endpoint, self.timeout_s = commands, events, timeout_s
+        self._curve = curve_keys(server_key, key) if key is not None else {}
+        self._context = zmq.Context()
+        self._dealer = None
+
+    # Lifetime ---------------------------------------------------------------------------------------
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self._context.destroy(linger=0)
+
+    def _socket(self, kind: int, endpoint: str) -> zmq.Socket:
+        socket = self._context.socket(kind)
+        socket.setsockopt(zmq.LINGER, 0)
+        for option, value in self._curve.items():
+            setattr(socket, option, value)
+        socket.connect(endpoint)
+        return socket
+
+    # Commands ---------------------------------------------------------------------------------------
+
+    def call(self, cmd: str, **args) -> Reply:
+        """One command, its typed reply; CommandRefused or TimeoutError otherwise."""
+        if self._dealer is None:
+            self._dealer = self._socket(zmq.DEALER, self.commands_endpoint)
+            self._dealer.setsockopt(zmq.SNDTIMEO, int(self.timeout_s * 1000))  # a refused CURVE handshake: no peer
+        request_id = uuid.uuid4().hex
+        try:
+            self._dealer.send_json({"id": request_id, "cmd": cmd, "args": args})
+        except zmq.Again:
+            raise TimeoutError(f"cannot reach {self.commands_endpoint} within {self.timeout_s:g} s "
+                               "(are the keys right?)") from None
+        return self._reply(cmd, request_id)
+
+    def _reply(self, cmd: str, request_id: str) -> Reply:
+        give_up = time.monotonic() + self.timeout_s
+        while self._dealer.poll(max(1, int((give_up - time.monotonic()) * 1000))):
+            body = json.loads(self._dealer.recv())
+            if body.get("id") != request_id:
+                continue  # the late answer to an earlier request that timed out
+            if not body.get("ok"):
+                error = body.get("error") or {}
+                raise CommandRefused(cmd, error.get("code", "?"), error.get("message", ""))
+            return REPLY_MODELS[cmd].model_validate(body)
+        self._dealer.close(linger=0)  # a DEALER with a request in flight is of no more use
+        self._dealer = None
+        raise TimeoutError(f"no reply from {self.commands_endpoint} within {self.timeout_s:g} s "
+                           "(is `palpd serve` running, and are the keys right?)")
+
+    def status(self) -> StatusReply:
+        return self.call("status")
+
+    def estimate(self) -> EstimateGetReply:
+        """The latest estimate, the session's palpations and the learner's posterior map."""
+        return self.call("estimate.get")
+
+    def scan(self, strategy: str = "active", *, wait: bool = False, wait_timeout_s: float | None = None,
+             **options) -> ScanStartReply | StatusReply:
+        """scan.start (options: max_palpations, seed, center_mm, size_mm, depth_mm, speed_mm_s, resume).
+
+        wait=True: return the status once the scan has ended (ready, or fault: check `.state`).
+        """
+        args = {"strategy": strategy, **{k: v for k, v in options.items() if v is not None}}
+        if not wait:
+            return self.call("scan.start", **args)
+        with self._subscription("status") as statuses:
+            self.call("scan.start", **args)
+            return self._until_scan_ends(statuses, wait_timeout_s)
+
+    def _until_scan_ends(self, statuses: zmq.Socket, timeout_s: float | None) -> StatusReply:
+        """Status events (a heartbeat comes every status_interval_s) until the state leaves scanning."""
+        give_up = None if timeout_s is None else time.monotonic() + timeout_s
+        current = self.status()
+        while current.state not in SCAN_ENDED:
+            left_s = None if give_up is None else give_up - time.monotonic()
+            if left_s is not None and left_s <= 0:
+                raise TimeoutError(f"the scan did not end within {timeout_s:g} s")
+            if statuses.poll(int(1000 * min(1.0, left_s if left_s is not None else 1.0))):
+                statuses.recv_multipart()  # any status event may be the end: ask for the current one
+                current = self.status()
+        return current
+
+    def stop_scan(self) -> Reply:
+        return self.call("scan.stop")
+
+    def estop(self) -> Reply:
+        return self.call("estop")
+
+    def reset(self) -> Reply:
+        return self.call("reset")
+
+    def probe(self, x_mm: float, y_mm: float) -> Reply:
+        return self.call("probe.at", xy_mm=[float(x_mm), float(y_mm)])
+
+    def bias(self) -> Reply:
+        return self.call("bias")
+
+    # Events -----------------------------------------------------------------------------------------
+
+    def _subscription(self, *topics: str) -> zmq.Socket:
+        socket = self._socket(zmq.SUB, self.events_endpoint)
+        for topic in topics or ("",):
+            socket.subscribe(topic)
+        return socket
+
+    def events(self, *topics: str, timeout_s: float | None = None) -> Iterator[Event]:
+        """Events as they are published (Status, Palpation, Stiffness, Estimate, FaultMsg), all topics by default.
+
+        Ends when no event came for timeout_s (None: never). A status heartbeat comes at least
+        every second, so a status subscriber always hears from a live daemon.
+        """
+        with self._subscription(*topics) as socket:
+            while socket.poll(None if timeout_s is None else int(timeout_s * 1000)):
+                topic, payload = socket.recv_multipart()[:2]
+                model = EVENT_MODELS.get(topic.decode(errors="replace"))
+                if model is None:
+                    continue
+                try:
+                    yield model.model_validate_json(payload)
+                except ValidationError:
+                    continue  # a newer daemon's field this client does not know: skip, do not die

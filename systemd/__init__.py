@@ -1,0 +1,1 @@
+"""The systemd unit and udev rule template, shipped as palpd.share.systemd (`palpd files` prints them)."""

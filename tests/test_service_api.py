@@ -1,0 +1,174 @@
+"""The service as a user meets it: schemas every reply keeps, a late subscriber's status, the Python client and
+the README's examples, palpctl's edges, the live page in a real browser and the Foxglove stream.
+
+One daemon (virtual time) serves the whole module; each test leaves it ready.
+"""
+import json
+import re
+import subprocess
+import sys
+import time
+
+import jsonschema
+import pytest
+import zmq
+
+from browser import CHROMIUM, HeadlessChromium
+from conftest import ROOT
+from daemon_client import Daemon, free_loopback_ports, receive
+from palpd.bus.messages import Estimate, Status
+from palpd.client import Client, CommandRefused
+
+
+@pytest.fixture(scope="module")
+def daemon(tmp_path_factory):
+    context = zmq.Context()
+    (foxglove_port,) = free_loopback_ports(context, 1)
+    context.term()
+    d = Daemon(tmp_path_factory.mktemp("service"), env={"PALPD_DAEMON__FOXGLOVE": f"127.0.0.1:{foxglove_port}"})
+    d.foxglove = f"ws://127.0.0.1:{foxglove_port}"
+    d.start().wait_for(lambda s: s["state"] == "ready", what="ready")
+    yield d
+    d.close()
+
+
+@pytest.fixture(scope="module")
+def schemas():
+    """What `palpd schema` publishes, read as a user would."""
+    result = subprocess.run([sys.executable, "-m", "palpd", "schema"], capture_output=True, text=True, check=True)
+    return json.loads(result.stdout)
+
+
+def client_for(daemon, **options) -> Client:
+    return Client(daemon.commands, daemon.events, **options)
+
+
+def validate(schemas, name: str, body: dict) -> None:
+    jsonschema.Draft202012Validator(schemas[name]).validate(body)
+
+
+def test_every_published_schema_is_a_titled_described_draft_2020_12_schema_with_an_id(schemas):
+    assert {f"reply.{c}" for c in ("status", "scan.start", "scan.stop", "estop", "reset", "estimate.get",
+                                   "probe.at", "bias")} <= set(schemas)
+    for name, schema in schemas.items():
+        jsonschema.Draft202012Validator.check_schema(schema)
+        assert schema["$schema"].endswith("2020-12/schema") and schema["$id"].endswith(f":{name}"), name
+        assert schema["title"] and schema["description"], name
+
+
+def test_a_late_subscriber_gets_the_status_within_a_second_and_the_reply_validates(daemon, schemas):
+    subscriber = daemon.subscriber("status")
+    joined = time.monotonic()
+    topic, event = receive(subscriber, timeout_s=3.0)
+    assert topic == "status" and time.monotonic() - joined < 1.0
+    Status.model_validate(event)
+    reply = daemon.call("status")
+    validate(schemas, "reply.status", reply)
+    validate(schemas, "status", {k: v for k, v in reply.items() if k not in ("id", "ok")})
+    assert reply["seq"] >= event["seq"] and reply["state"] == "ready"
+
+
+def test_the_client_scans_and_every_reply_and_event_keeps_its_schema(daemon, schemas, tmp_path):
+    with client_for(daemon) as client:
+        seen = []
+        with client._subscription() as raw:
+            ended = client.scan("active", max_palpations=14, wait=True, wait_timeout_s=120)
+            while raw.poll(0):
+                topic, payload = raw.recv_multipart()
+                seen.append((topic.decode(), json.loads(payload)))
+        assert ended.state == "ready" and ended.palpations == 14
+        for topic, payload in seen:
+            validate(schemas, topic, payload)
+        reply = client.estimate()
+        assert reply.estimate.points == sum(p.stiffness_n_per_mm is not None for p in reply.probes) > 10
+        assert [p.index for p in reply.probes] == list(range(14)) and reply.map is not None
+        raw_replies = {cmd: daemon.call(cmd, args) for cmd, args in
+                       [("estimate.get", {}), ("status", {}), ("bias", {})]}
+        daemon.wait_for(lambda s: s["state"] == "ready", what="tare done")
+        raw_replies["estop"] = daemon.call("estop")
+        raw_replies["reset"] = daemon.call("reset")
+        for cmd, body in raw_replies.items():
+            assert body["ok"], body
+            validate(schemas, f"reply.{cmd}", body)
+        with pytest.raises(CommandRefused) as refused:
+            client.call("scan.stop")  # not scanning
+        assert refused.value.code == "invalid_state"
+        typed = next(client.events("status", timeout_s=3.0))
+        assert isinstance(typed, Status) and typed.state == "ready"
+
+
+def readme_examples() -> dict[str, str]:
+    """The README's runnable Python examples, by the comment on their first line."""
+    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
+    return {block.splitlines()[0]: block for block in blocks if block.startswith("# example:")}
+
+
+def test_the_readme_examples_run_as_written(daemon, tmp_path):
+    examples = readme_examples()
+    assert len(examples) == 2 and all(len(code.strip().splitlines()) <= 6 for code in examples.values())
+    running = {name: subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                      text=True, env=daemon.env, cwd=tmp_path) for name, code in examples.items()}
+    for name, process in running.items():  # side by side: one scans the daemon's bench, one its own
+        stdout, stderr = process.communicate(timeout=180)
+        assert process.returncode == 0, (name, stderr)
+        assert re.search(r"\(\s*-?\d+\.\d+, -?\d+\.\d+\)", stdout), (name, stdout)  # a lump's centre
+
+
+def test_palpctl_edges_never_show_a_traceback(daemon, tmp_path):
+    base = [sys.executable, "-m", "palpd.palpctl", "--endpoint", daemon.commands, "--events", daemon.events]
+    help_text = subprocess.run([*base, "probe", "--help"], capture_output=True, text=True, timeout=30)
+    assert help_text.returncode == 0 and "X Y" in help_text.stdout and not help_text.stderr
+    version = subprocess.run([*base, "--version"], capture_output=True, text=True, timeout=30)
+    assert version.returncode == 0 and re.fullmatch(r"palpctl \d+\.\d+\.\d+\n", version.stdout)
+    head = subprocess.Popen([*base, "estimate"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    head.stdout.close()  # `palpctl estimate | head`: the reader is gone before palpctl writes
+    assert head.wait(timeout=30) == 141 and head.stderr.read() == b""
+    head.stderr.close()
+    plotted = subprocess.run([*base, "plot", str(tmp_path / "map.png")], capture_output=True, text=True, timeout=60)
+    assert plotted.returncode == 0 and (tmp_path / "map.png").read_bytes().startswith(b"\x89PNG"), plotted.stderr
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="Debian's chromium is not installed (.ci/run installs it with apt-get)")
+def test_the_live_page_follows_a_running_scan_in_headless_chromium(daemon, tmp_path):
+    from PIL import Image
+
+    assert daemon.call("scan.start", {"strategy": "active", "max_palpations": 18, "seed": 2})["ok"]
+    browser = HeadlessChromium(daemon.http, tmp_path / "profile")
+    try:
+        browser.wait_for("document.getElementById('state').textContent === 'scanning'")
+        first = int(browser.wait_for("+document.getElementById('map').dataset.probes >= 3 && "
+                                     "+document.getElementById('map').dataset.probes"))
+        later = int(browser.wait_for(f"+document.getElementById('map').dataset.probes > {first} && "
+                                     f"+document.getElementById('map').dataset.probes"))
+        assert later > first  # the page follows the scan as events arrive
+        assert int(browser.evaluate("+document.getElementById('map').dataset.mapCells")) > 100
+        shot = Image.open(browser.screenshot(tmp_path / "live.png")).convert("RGB")
+        daemon.wait_for(lambda s: s["state"] == "ready", what="scan end", timeout_s=120)
+        final = daemon.call("status")
+        text = browser.wait_for(f"document.getElementById('palpations').textContent === '{final['palpations']}' "
+                                f"&& document.getElementById('state').textContent === 'ready' "
+                                f"&& document.getElementById('lumps').innerText")
+        assert re.search(r"lump 1: centre \(.+\) ± [\d.]+ mm, radius [\d.]+ ± [\d.]+ mm", text), text
+        assert int(browser.evaluate("+document.getElementById('map').dataset.lumps")) >= 1
+    finally:
+        browser.close()
+    colours = shot.crop((20, 60, 620, 660)).getcolors(1 << 16)
+    assert colours is not None and len(colours) > 50  # a drawn map, not a blank canvas
+
+
+def test_the_foxglove_stream_advertises_every_topic_and_streams_status(daemon):
+    from websockets.sync.client import connect
+
+    with connect(daemon.foxglove, subprotocols=["foxglove.sdk.v1", "foxglove.websocket.v1"], open_timeout=10) as ws:
+        channels = {}
+        while "status" not in channels:
+            message = json.loads(ws.recv(timeout=10))
+            if message["op"] == "advertise":
+                channels |= {c["topic"]: c for c in message["channels"]}
+        assert {"status", "palpation", "stiffness", "estimate", "fault"} <= set(channels)
+        assert channels["status"]["encoding"] == "json" and json.loads(channels["status"]["schema"])["title"]
+        ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": channels["status"]["id"]}]}))
+        while isinstance(frame := ws.recv(timeout=5), str):
+            pass
+        assert frame[0] == 1 and int.from_bytes(frame[1:5], "little") == 7
+        Status.model_validate_json(frame[13:])
