@@ -39,9 +39,11 @@ def test_wrong_types_are_named():
 @pytest.fixture(scope="module")
 def daemon(tmp_path_factory):
     d = Daemon(tmp_path_factory.mktemp("fuzz")).start()
-    d.wait_for(lambda s: s["state"] == "ready", what="ready")
-    yield d
-    d.close()
+    try:  # closed even when it never became ready: no daemon outlives the module
+        d.wait_for(lambda s: s["state"] == "ready", what="ready")
+        yield d
+    finally:
+        d.close()
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

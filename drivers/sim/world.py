@@ -24,6 +24,7 @@ PHYSICS_STEP_S = 0.0005
 NO_FORCE = (0.0, 0.0, 0.0)
 HOME_Q = model.HOME_Q
 STAND_CAPTURE_MM = 3.0  # powered off this close to home, the arm settles into its stand
+_HOME = list(HOME_Q)
 
 
 class SimWorld:
@@ -68,7 +69,7 @@ class SimWorld:
             self.contact_force_robot, self.contact_force_n = NO_FORCE, 0.0
 
     def advance_to(self, t_s: float) -> None:
-        if self.in_stand and self.hand is None:  # parked and unpowered: nothing moves, time just passes
+        if self.in_stand and self.hand is None and self.arm.q == _HOME:  # parked, unpowered: only time passes
             steps = int((t_s + 1e-12 - self.t_s) / PHYSICS_STEP_S)
             self.t_s += max(steps, 0) * PHYSICS_STEP_S
             return
