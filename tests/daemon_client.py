@@ -53,6 +53,9 @@ class Daemon:
     def socket(self, kind: int, keys: dict | None = None) -> zmq.Socket:
         socket = self.context.socket(kind)
         socket.setsockopt(zmq.LINGER, 0)
+        # A connection whose ZMTP handshake stalls (an accepted connect before the daemon's socket is up) is
+        # dropped and retried after 1 s, not after ZeroMQ's default 30 s, the whole of a wait_for.
+        socket.setsockopt(zmq.HANDSHAKE_IVL, 1000)
         for option, value in (keys or {}).items():
             setattr(socket, option, value)
         self._sockets.append(socket)

@@ -74,8 +74,7 @@ def test_a_killed_servo_process_leaves_the_arm_in_the_bridges_gravity_hold_and_t
     bench = open_servo_bench(settings, load_scene(SCENES / "paper.toml"))
     try:
         bench.servo.start()
-        bench.servo.run(MoveTo((10.0, 10.0, 20.0), 80.0, 2000.0))
-        time.sleep(0.3)  # holding there (the loop idles on the wall clock), 16 mm above the tissue
+        bench.servo.run(MoveTo((10.0, 10.0, 20.0), 80.0, 2000.0))  # 16 mm above the tissue
         os.kill(bench.servo.pid, signal.SIGKILL)
         bench.servo.process.join(5)
     finally:
@@ -89,7 +88,7 @@ def test_a_killed_servo_process_leaves_the_arm_in_the_bridges_gravity_hold_and_t
         observer.transport.close()  # (not close(): that would disable the amplifiers, as a host does)
     assert later.status & STATUS_AMPLIFIERS_ON and later.status & STATUS_HOLDING
     heights_mm = [1000.0 * bench.frame.from_robot(model.forward(s.angles_rad))[2] for s in (first, later)]
-    assert heights_mm[0] > 10.0 and abs(heights_mm[1] - heights_mm[0]) < 2.0, heights_mm  # floating, not falling
+    assert heights_mm[0] > 10.0 and heights_mm[1] > heights_mm[0] - 2.0, heights_mm  # floating, not falling
     again = open_servo_bench(settings, load_scene(SCENES / "paper.toml"))  # the same simulator, still running
     try:
         report = run_scan(again, settings, FixedPlan([(-10.0, 10.0)]))
