@@ -37,15 +37,22 @@ def test_bench_stall_prints_outcome_true_force_and_motion_after_the_stop_per_pat
 
 
 
-def test_bench_stall_prints_a_table(capsys, monkeypatch):
+def test_bench_stall_prints_a_row_per_pattern(capsys, monkeypatch):
+    """The table's layout (the figures themselves are the JSON test's): one row per pattern, units on each."""
     from argparse import Namespace
 
     from palpd.commands import bench_stall
 
-    monkeypatch.setattr(bench_stall, "POINTS_MM", ((7.5, -4.0),))  # one press is enough for the layout
-    assert bench_stall.run(Namespace(pattern=["0"], json=False, config=None)) == 0
-    out = capsys.readouterr().out
-    assert "true peak" in out and "moved after stop" in out and "no stall" in out and "completed" in out
+    def canned(settings, pattern, points_mm=None):
+        return {"pattern": pattern.name, "outcome": "completed", "true_peak_n": 3.25, "host_peak_n": 3.26,
+                "outside_workspace_mm": 0.0, "moved_after_stop_mm": 0.0, "pressing_after_stop_n": 0.0}
+
+    monkeypatch.setattr(bench_stall, "run_pattern", canned)
+    assert bench_stall.run(Namespace(pattern=["0", "20/200"], json=False, config=None)) == 0
+    header, *rows, footer = capsys.readouterr().out.splitlines()
+    assert "true peak" in header and "moved after stop" in header and "force cap 6.0 N" in footer
+    assert [r.split("  ")[0] for r in rows] == ["no stall", "20 ms every 200 ticks"]
+    assert all("3.25 N" in r and "completed" in r for r in rows)
 
 
 def test_bench_stall_refuses_a_bad_pattern(run_cli):

@@ -41,14 +41,15 @@ def test_currents_reach_the_simulated_motors_and_encoders_come_back(served):
     with open_bridge_robot(endpoint.url, timeout_s=TIMEOUT_S) as robot:
         robot.enable()
         robot.write((0.0, 0.4, 0.0), (0.0, 0.45, 0.0))
-        assert host.world.currents_a == pytest.approx((0.0, 0.4, 0.0))  # applied before the reply came back
+        robot.read()  # the command's reply: the state as the bridge applied it
+        assert host.world.currents_a == pytest.approx((0.0, 0.4, 0.0))
         time.sleep(0.05)  # a silent host: the bridge ramps to the hold the command carried
         state = robot.read()
         assert state.status & STATUS_AMPLIFIERS_ON and state.status & STATUS_HOLDING
         assert host.world.currents_a == pytest.approx((0.0, 0.45, 0.0))
         assert 0 < state.device_t_s <= host.world.t_s and all(isinstance(c, int) for c in state.counts)
         robot.write((0.0, 0.3, 0.0))  # a command ends the hold
-        assert host.world.currents_a == pytest.approx((0.0, 0.3, 0.0)) and not robot.state.status & STATUS_HOLDING
+        assert not robot.read().status & STATUS_HOLDING and host.world.currents_a == pytest.approx((0.0, 0.3, 0.0))
         robot.disable()
         assert robot.read().status & STATUS_AMPLIFIERS_ON == 0
         assert host.world.currents_a == (0.0, 0.0, 0.0)
@@ -136,7 +137,9 @@ def test_sim_url_goes_through_the_codec_in_process():
     robot.enable()
     robot.write((0.0, 0.5, 0.0))
     assert world.currents_a == (0.0, 0.5, 0.0)
+    robot.read()  # collects the command's reply: no second exchange
     assert robot.transport.device.decoder.rejected_frames == 0 and robot.state.ack_seq == robot._seq
+    assert robot.exchanges == 3  # the opening READ, the enable, the command
 
 
 def test_opening_an_absent_device_fails_at_once_naming_it(tmp_path):

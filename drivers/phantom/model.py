@@ -199,6 +199,10 @@ class SensorTilt:
     def to_base(self, q: Vec3, v: Vec3) -> Vec3:
         return _times(link2_rotation(q), _transpose_times(self._aligned, v))
 
+    def from_base(self, q: Vec3, v: Vec3) -> Vec3:
+        """What the tilted sensor reads of a vector v given in base axes (base_to_tilt)."""
+        return _times(self._aligned, _transpose_times(link2_rotation(q), v))
+
 
 def tilt_to_base(q: Vec3, q_aligned: Vec3, v: Vec3) -> Vec3:
     """A vector measured by a sensor fixed to link 2, aligned with the base at q_aligned, in base axes.

@@ -35,6 +35,7 @@ class SimWorld:
         self.clock = clock
         self.frame = TissueFrame(tuple(v / 1000.0 for v in scene.placement.origin_mm))
         self.q_aligned = model.inverse(self.frame.to_robot((0.0, 0.0, 0.0)))
+        self._tilt = model.SensorTilt(self.q_aligned)
         self.field = StiffnessField(scene)
         rng = random.Random(hash((scene.seed, seed)) & 0xFFFFFFFF)
         self.sensor = SimNano17(scene.sensor.noise_n, scene.sensor.bias_n, rng)
@@ -129,7 +130,7 @@ class SimWorld:
     def _force_on_sensor(self) -> model.Vec3:
         force = self.contact_force_robot
         if self.scene.sensor.tilt:
-            force = model.base_to_tilt(tuple(self.arm.q), self.q_aligned, force)  # type: ignore[arg-type]
+            force = self._tilt.from_base(tuple(self.arm.q), force)  # type: ignore[arg-type]
         return self.frame.vector_from_robot(force)
 
     # -- physics -----------------------------------------------------------------------------

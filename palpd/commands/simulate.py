@@ -38,24 +38,12 @@ def run(args) -> int:
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
-    _as_real_time_as_hardware()
     print("ready", flush=True)
     try:
         host.serve(stop)
     finally:
         host.close()
     return 0
-
-
-def _as_real_time_as_hardware() -> None:
-    """The simulator stands in for a bridge board and a Net F/T box, which keep their own time whatever the
-    host does: it takes the servo's real-time measures too (SCHED_FIFO, mlockall) and says once what it may not."""
-    import sys
-
-    from palpd.control.realtime import prepare_realtime
-
-    for note in prepare_realtime():
-        print(f"palpd simulate: {note}", file=sys.stderr, flush=True)
 
 
 def _add_endpoints(host, args) -> None:
