@@ -14,6 +14,7 @@ import sys
 from drivers.errors import DriverError
 from palpd import __version__
 from palpd.errors import EXIT_FAILURE, PalpdError
+from palpd.threads import pin_blas_to_one_thread
 
 # Order is the order of `palpd --help`.
 COMMAND_MODULES = ["scan", "scenes", "serve", "learner", "simulate", "dataset", "study", "calibration", "schema",
@@ -32,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    pin_blas_to_one_thread()  # before numpy loads its BLAS, and inherited by every process palpd starts
     args = build_parser().parse_args(argv)
     try:
         status = args.handler(args)

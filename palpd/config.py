@@ -131,14 +131,16 @@ class ScanSettings(_Section):
 class LearnerSettings(_Section):
     """The online learner (--strategy active and `palpd learner`)."""
 
-    confidence: Annotated[float, Field(gt=0.5, lt=1.0)] = 0.9  # P(lump) beyond c or 1 - c counts as sure
+    confidence: Annotated[float, Field(gt=0.5, lt=1.0)] = 0.9  # stop when the chosen hypothesis has this weight...
+    tolerance_mm: Annotated[float, Field(gt=0, le=100)] = 0.5  # ...and every centre/radius sd is at most this
     max_palpations: Annotated[int, Field(ge=1, le=10000)] = 40
-    max_ambiguous_fraction: Annotated[float, Field(ge=0, le=1)] = 0.01  # stop when this little is unsure
-    initial_points: Annotated[int, Field(ge=0, le=1000)] = 12  # space-filling first design
+    initial_points: Annotated[int, Field(ge=0, le=1000)] = 8  # space-filling first design
     grid_points: Annotated[int, Field(ge=11, le=401)] = 121  # candidate grid, per side
     min_spacing_mm: NonNegative = 1.5
-    length_scale_mm: tuple[Positive, Positive] = (1.5, 8.0)  # bounds of the kernel length scale
-    refit_growth: Annotated[float, Field(gt=1.0)] = 1.3  # refit hyperparameters when the data grew this much
+    coverage_mm: Positive = 18.0  # done only once every spot is this close to a reading: no lump left unfelt
+    length_scale_mm: tuple[Positive, Positive] = (1.5, 8.0)  # bounds of the free-form map's kernel length scale
+    refit_growth: Annotated[float, Field(gt=1.0)] = 1.3  # relearn that kernel when the data grew this much
+    reading_noise_floor: Annotated[float, Field(gt=0, le=1)] = 0.01  # readings repeat no better than this fraction
     training_set: str = ""  # labelled dataset CSV (tumor column): τ learned from it; empty: τ from the data
 
     @model_validator(mode="after")

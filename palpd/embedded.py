@@ -12,7 +12,7 @@ from typing import Callable
 
 
 def scan_settings(config=None, strategy=None, max_palpations=None, seed=None, depth_mm=None, speed_mm_s=None,
-                  confidence=None, train=None):
+                  confidence=None, train=None, tolerance_mm=None):
     """Validated settings of one scan (defaults, then the config file, PALPD_ variables, then these)."""
     from palpd.config import load_settings
     from palpd.errors import UsageError
@@ -24,7 +24,7 @@ def scan_settings(config=None, strategy=None, max_palpations=None, seed=None, de
     return load_settings(config).updated(
         scan={"strategy": strategy, "max_palpations": max_palpations, "seed": seed},
         palpation={"depth_mm": depth_mm, "speed_mm_s": speed_mm_s},
-        learner={"confidence": confidence, "training_set": train},
+        learner={"confidence": confidence, "tolerance_mm": tolerance_mm, "training_set": train},
     )
 
 
@@ -34,7 +34,6 @@ def run_simulated_scan(settings, scene, progress: Callable | None = None, realti
 
     The active budget defaults to learner.max_palpations (it stops on its own well before a raster's).
     """
-    from drivers.sim.scene import truth_lumps
     from palpd import metrics
     from palpd.control.remote import open_servo_bench
     from palpd.scan import plan, run_scan
@@ -49,8 +48,8 @@ def run_simulated_scan(settings, scene, progress: Callable | None = None, realti
         report = {"scene": scene.name, **run_scan(bench, settings, planner, progress)}
     finally:
         bench.servo.close()
-    truth = truth_lumps(scene)
-    report["truth"] = {"lumps": truth, **report.get("truth", {})}  # with the world's true peak force, if known
+    truth = metrics.scene_truth(scene, settings.scan.min_contrast)
+    report["truth"] = {"lumps": truth, **report.get("truth", {})}  # with the world\'s true peak force, if known
     report["metrics"] = metrics.compare(truth, report["lumps"])
     return report, planner
 

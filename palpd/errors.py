@@ -3,6 +3,7 @@ from __future__ import annotations
 
 EXIT_FAILURE = 1
 EXIT_USAGE = 2
+EXIT_UNDETERMINED = 3  # a scan whose budget ran out before the evidence decided (verdict `undetermined`)
 EXIT_CONFIG = 78  # sysexits EX_CONFIG: systemd must not restart a daemon whose config is wrong
 
 

@@ -25,19 +25,32 @@ BOUNDARY_VERTICES = 48
 @dataclass(frozen=True)
 class LumpEstimate:
     center_mm: tuple[float, float]
-    radius_mm: float
+    radius_mm: float  # an ellipse's is its equal-area radius, √(major·minor)
     center_sd_mm: float
     radius_sd_mm: float
     boundary_mm: list[list[float]]
+    axes_mm: tuple[float, float] | None = None  # ellipse: (major, minor) semi-axes
+    axes_sd_mm: tuple[float, float] | None = None
+    angle_deg: float | None = None  # ellipse: major axis from +x, in [0, 180)
+    angle_sd_deg: float | None = None
+    edge_mm: float | None = None  # where modelled: 75 % to 25 % of the lump's height along a radius
+    edge_sd_mm: float | None = None
 
     def as_dict(self) -> dict:
-        return {
+        out = {
             "center_mm": [round(v, 3) for v in self.center_mm],
             "radius_mm": round(self.radius_mm, 3),
             "center_sd_mm": round(self.center_sd_mm, 3),
             "radius_sd_mm": round(self.radius_sd_mm, 3),
             "boundary_mm": [[round(x, 3), round(y, 3)] for x, y in self.boundary_mm],
         }
+        for name in ("axes_mm", "axes_sd_mm"):
+            if getattr(self, name) is not None:
+                out[name] = [round(v, 3) for v in getattr(self, name)]
+        for name in ("angle_deg", "angle_sd_deg", "edge_mm", "edge_sd_mm"):
+            if getattr(self, name) is not None:
+                out[name] = round(getattr(self, name), 3)
+        return out
 
 
 def stiffness_threshold(k: np.ndarray, min_contrast: float) -> float | None:

@@ -1,4 +1,12 @@
-"""How far an estimate is from the truth (simulated scenes only)."""
+"""How far an estimate is from the truth (simulated scenes only).
+
+A scene's truth is its `[[lump]]` circles and, for a scene with a measured
+map, the regions of the map itself: where the map rises above its tissue level
+by at least half `min_contrast`, each region's half-height area (halfway
+between the tissue level, the map's 10th percentile, and the region's top), as
+a polygon with its centroid and equal-area radius. IoU is the overlap of the
+reported boundary polygon with the true disc or polygon.
+"""
 from __future__ import annotations
 
 import math
@@ -7,6 +15,51 @@ import numpy as np
 from matplotlib.path import Path as PolygonPath
 
 IOU_GRID_MM = 0.25
+MAP_GRID_MM = 0.25
+TISSUE_PERCENTILE = 10
+
+
+def scene_truth(scene, min_contrast: float = 0.3) -> list[dict]:
+    """The scene's lumps as placed on the bench, and the measured map's regions."""
+    from drivers.sim.scene import truth_lumps
+
+    truth = truth_lumps(scene)
+    if scene.tissue.map:
+        truth += map_regions(scene.tissue.map, scene.tissue.size_mm, min_contrast)
+    return truth
+
+
+def map_regions(path, size_mm, min_contrast: float) -> list[dict]:
+    import contourpy
+    from scipy import ndimage
+    from scipy.interpolate import griddata
+
+    from drivers.sim.scene import load_stiffness_map
+
+    rows = np.array(load_stiffness_map(path))
+    xs = np.arange(-size_mm[0] / 2, size_mm[0] / 2 + 1e-9, MAP_GRID_MM)
+    ys = np.arange(-size_mm[1] / 2, size_mm[1] / 2 + 1e-9, MAP_GRID_MM)
+    gx, gy = np.meshgrid(xs, ys)
+    k = griddata(rows[:, :2], rows[:, 2], (gx, gy), method="linear")
+    k = np.where(np.isfinite(k), k, griddata(rows[:, :2], rows[:, 2], (gx, gy), method="nearest"))
+    k = ndimage.gaussian_filter(k, 0.5 / MAP_GRID_MM)  # a measured map's own noise is not a boundary
+    tissue = float(np.percentile(k, TISSUE_PERCENTILE))
+    labels, count = ndimage.label(k > tissue * (1.0 + 0.5 * min_contrast))
+    regions = []
+    for label in range(1, count + 1):
+        peak = float(k[labels == label].max())
+        if peak < tissue * (1.0 + min_contrast):
+            continue
+        inside = (labels == label) & (k >= 0.5 * (tissue + peak))
+        z = np.pad(np.where(inside, 1.0, 0.0), 1)
+        pad_x = np.concatenate([[xs[0] - 1e-6], xs, [xs[-1] + 1e-6]])
+        pad_y = np.concatenate([[ys[0] - 1e-6], ys, [ys[-1] + 1e-6]])
+        line = max(contourpy.contour_generator(pad_x, pad_y, z).lines(0.5), key=len)
+        area = np.count_nonzero(inside) * MAP_GRID_MM**2
+        regions.append({"center_mm": [round(float(gx[inside].mean()), 3), round(float(gy[inside].mean()), 3)],
+                        "radius_mm": round(math.sqrt(area / math.pi), 3), "stiffness_n_per_mm": round(peak, 4),
+                        "boundary_mm": np.round(line, 3).tolist()})
+    return regions
 
 
 def compare(truth: list[dict], lumps: list[dict]) -> dict:
@@ -24,7 +77,7 @@ def compare(truth: list[dict], lumps: list[dict]) -> dict:
             "found": True,
             "center_error_mm": round(math.dist(est["center_mm"], true["center_mm"]), 3),
             "radius_error_mm": round(abs(est["radius_mm"] - true["radius_mm"]), 3),
-            "iou": round(iou(est["boundary_mm"], true["center_mm"], true["radius_mm"]), 4),
+            "iou": round(iou(est["boundary_mm"], true), 4),
         })
     found = [m for m in per_lump if m["found"]]
     return {
@@ -39,16 +92,20 @@ def compare(truth: list[dict], lumps: list[dict]) -> dict:
     }
 
 
-def iou(boundary_mm: list[list[float]], center_mm, radius_mm: float) -> float:
-    """Intersection over union of a polygon and a disc, counted on a fine grid."""
+def iou(boundary_mm: list[list[float]], true: dict) -> float:
+    """Intersection over union of a polygon and the true lump (its polygon, else its disc), on a fine grid."""
     polygon = np.asarray(boundary_mm, dtype=float)
-    low = np.minimum(polygon.min(axis=0), np.asarray(center_mm) - radius_mm) - 1.0
-    high = np.maximum(polygon.max(axis=0), np.asarray(center_mm) + radius_mm) + 1.0
-    xs = np.arange(low[0], high[0], IOU_GRID_MM)
-    ys = np.arange(low[1], high[1], IOU_GRID_MM)
-    gx, gy = np.meshgrid(xs, ys)
+    centre, radius = np.asarray(true["center_mm"], dtype=float), float(true["radius_mm"])
+    other = np.asarray(true["boundary_mm"], dtype=float) if true.get("boundary_mm") else None
+    extent = other if other is not None else np.array([centre - radius, centre + radius])
+    low = np.minimum(polygon.min(axis=0), extent.min(axis=0)) - 1.0
+    high = np.maximum(polygon.max(axis=0), extent.max(axis=0)) + 1.0
+    gx, gy = np.meshgrid(np.arange(low[0], high[0], IOU_GRID_MM), np.arange(low[1], high[1], IOU_GRID_MM))
     points = np.column_stack([gx.ravel(), gy.ravel()])
     in_polygon = PolygonPath(polygon).contains_points(points)
-    in_disc = np.hypot(points[:, 0] - center_mm[0], points[:, 1] - center_mm[1]) <= radius_mm
-    union = np.count_nonzero(in_polygon | in_disc)
-    return float(np.count_nonzero(in_polygon & in_disc) / union) if union else 0.0
+    if other is not None:
+        in_truth = PolygonPath(other).contains_points(points)
+    else:
+        in_truth = np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1]) <= radius
+    union = np.count_nonzero(in_polygon | in_truth)
+    return float(np.count_nonzero(in_polygon & in_truth) / union) if union else 0.0

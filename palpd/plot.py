@@ -33,7 +33,7 @@ def plot_scan(report: dict, size_mm: tuple[float, float], path: str | Path, post
         draw_posterior(fig, ax, posterior)
     draw_probes(fig, ax, report["probes"])
     draw_truth(ax, report.get("truth", {}).get("lumps", []))
-    draw_lumps(ax, report["lumps"])
+    draw_lumps(ax, report["lumps"], report.get("model"))
     ax.set(xlim=(-half_w - 5, half_w + 5), ylim=(-half_h - 5, half_h + 5), aspect="equal",
            xlabel="x (mm, tissue frame)", ylabel="y (mm, tissue frame)", title=_title(report))
     if ax.get_legend_handles_labels()[0]:
@@ -92,29 +92,43 @@ def draw_probes(fig, ax, probes: list[dict]) -> None:
         ax.annotate(str(i), (x, y), xytext=(3, 3), textcoords="offset points", fontsize=5.5, zorder=5)
 
 
-def draw_lumps(ax, lumps: list[dict]) -> None:
-    """Each lump's 50 % boundary, its centre with a 1-sd disc, and its radius ± 1 sd as dashed circles."""
+def draw_lumps(ax, lumps: list[dict], model: dict | None = None) -> None:
+    """The lumps of the hypothesis the evidence chose, each with its uncertainty: its boundary as reported
+    (a circle, an ellipse or a free-form contour), a band from 1 sd inside to 1 sd outside it (its radius
+    sd, the boundary scaled about the centre), and its centre with a 1-sd disc."""
+    chosen = (model or {}).get("chosen")
     for i, lump in enumerate(lumps):
-        bx, by = zip(*lump["boundary_mm"])
-        ax.plot(bx + bx[:1], by + by[:1], color=LUMP, lw=2, zorder=6, label="estimated lump" if i == 0 else None)
-        centre, r, r_sd = lump["center_mm"], lump["radius_mm"], lump["radius_sd_mm"]
+        boundary = np.asarray(lump["boundary_mm"], dtype=float)
+        centre = np.asarray(lump["center_mm"], dtype=float)
+        spread = lump["radius_sd_mm"] / max(lump["radius_mm"], 1e-9)
+        outer = centre + (boundary - centre) * (1.0 + spread)
+        inner = centre + (boundary - centre) * max(1.0 - spread, 0.0)
+        band = np.vstack([outer, inner[::-1]])
+        ax.fill(band[:, 0], band[:, 1], color=LUMP, alpha=0.2, lw=0, zorder=6,
+                label="boundary ± 1 sd" if i == 0 else None)
+        ax.plot(boundary[:, 0], boundary[:, 1], color=LUMP, lw=2, zorder=6,
+                label=(f"estimated lump ({chosen})" if chosen else "estimated lump") if i == 0 else None)
         ax.add_patch(Circle(centre, max(lump["center_sd_mm"], 0.2), color=LUMP, alpha=0.35, zorder=6,
                             label="centre ± 1 sd" if i == 0 else None))
-        for bound in (r - r_sd, r + r_sd):
-            if bound > 0:
-                ax.add_patch(Circle(centre, bound, fill=False, ec=LUMP, ls="--", lw=0.8, zorder=6,
-                                    label="radius ± 1 sd" if i == 0 and bound == r + r_sd else None))
 
 
 def draw_truth(ax, lumps: list[dict]) -> None:
+    """True lumps: a circle, or a measured map's region as its polygon."""
     for i, true in enumerate(lumps):
-        ax.add_patch(Circle(true["center_mm"], true["radius_mm"], fill=False, ec=TRUTH, lw=1.5, zorder=5,
-                            label="true lump" if i == 0 else None))
+        label = "true lump" if i == 0 else None
+        if true.get("boundary_mm"):
+            ax.plot(*np.asarray(true["boundary_mm"], dtype=float).T, color=TRUTH, lw=1.5, zorder=5, label=label)
+        else:
+            ax.add_patch(Circle(true["center_mm"], true["radius_mm"], fill=False, ec=TRUTH, lw=1.5, zorder=5,
+                                label=label))
 
 
 def _title(report: dict) -> str:
     source = report.get("scene") or (f"session {report['session']}" if report.get("session") else "palpd")
     title = f"{source} — {report.get('strategy') or 'scan'}, {report['palpations']} palpations"
+    model = report.get("model")
+    if model:
+        title += f", {report.get('verdict', '')}: {model['chosen']} (weight {model['weight']:.2f})"
     metrics = report.get("metrics")
     if metrics and metrics.get("max_center_error_mm") is not None:
         title += f"\ncentre error {metrics['max_center_error_mm']:.2f} mm, radius error {metrics['max_radius_error_mm']:.2f} mm"

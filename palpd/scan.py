@@ -27,8 +27,17 @@ class Probe:
     def stiffness_n_per_mm(self) -> float | None:
         return self.fit.stiffness_n_per_mm if self.fit else None
 
+    @property
+    def outcome(self) -> str:
+        if self.fit is not None:
+            return "fit"
+        return "no_contact" if self.record.stop_reason == "no_contact" else "rejected"
+
     def as_dict(self) -> dict:
-        out = {"xy_mm": [round(v, 3) for v in self.record.xy_mm],
+        # A failed palpation has no contact point: it is reported where it was aimed.
+        xy = self.record.xy_mm if self.fit is not None else self.record.target_xy_mm
+        out = {"target_xy_mm": [round(v, 3) for v in self.record.target_xy_mm], "xy_mm": [round(v, 3) for v in xy],
+               "outcome": self.outcome,
                "stiffness_n_per_mm": None if self.fit is None else round(self.fit.stiffness_n_per_mm, 5)}
         if self.fit is not None:
             out["stiffness_se_n_per_mm"] = round(self.fit.stiffness_se_n_per_mm, 6)
@@ -87,6 +96,17 @@ def palpate(bench: Bench, settings, xy_mm) -> Probe:
         return Probe(record, None, reason)
 
 
+def _estimate(planner, probes: list[Probe], settings) -> tuple[list, str, dict | None]:
+    """(lumps, verdict, model): an adaptive planner's own (the learner decides by evidence); for a fixed
+    plan the §3.4 estimate, whose verdict is `lumps` or `none`, with no model choice behind it."""
+    if hasattr(planner, "lumps"):
+        return planner.lumps(), planner.verdict(), planner.model()
+    good = [pr for pr in probes if pr.fit is not None]
+    lumps = estimate_lumps([pr.record.xy_mm for pr in good], [pr.stiffness_n_per_mm for pr in good],
+                           settings.scan.min_contrast) if good else []
+    return lumps, ("lumps" if lumps else "none") if good else "undetermined", None
+
+
 def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Probe], None] | None = None) -> dict:
     """Palpate where the planner says until it says stop; returns the report body (without truth).
 
@@ -116,12 +136,7 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
         faults.append(servo.fault.as_dict())
     finally:
         servo.stop()
-    good = [pr for pr in probes if pr.fit is not None]
-    if hasattr(planner, "lumps"):  # an adaptive planner keeps its own map of where the lumps are
-        lumps = planner.lumps()
-    else:
-        lumps = estimate_lumps([pr.record.xy_mm for pr in good], [pr.stiffness_n_per_mm for pr in good],
-                               settings.scan.min_contrast) if good else []
+    lumps, verdict, model = _estimate(planner, probes, settings)
     body = {
         "strategy": settings.scan.strategy,
         "seed": settings.scan.seed,
@@ -130,6 +145,8 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
         "wall_time_s": round(time.monotonic() - wall_start, 3),
         "max_contact_force_n": round(servo.max_contact_force_n, 4),
         "faults": faults,
+        "verdict": verdict,
+        "model": model,
         "lumps": [lump.as_dict() for lump in lumps],
         "probes": [pr.as_dict() for pr in probes],
     }

@@ -60,7 +60,7 @@ def test_learner_process_turns_stiffness_into_estimates_with_next_probe(ctx, tmp
         assert topic == b"estimate" and first.points == 0 and first.next_probe_mm is not None
         bus.send_multipart([b"stiffness", b'{"not": "a stiffness message"}'])  # refused, not fatal
         xy, latest = first.next_probe_mm, first
-        for i in range(1, 21):
+        for i in range(1, 31):
             msg = Stiffness(seq=i, t=float(i), index=i, xy_mm=xy, stiffness_n_per_mm=k_paper(xy),
                             stiffness_sd_n_per_mm=0.001)
             bus.send_multipart([b"stiffness", msg.model_dump_json().encode()])
@@ -72,6 +72,7 @@ def test_learner_process_turns_stiffness_into_estimates_with_next_probe(ctx, tmp
         assert len(latest.lumps) == 1
         assert math.dist(latest.lumps[0].center_mm, (7.5, -4.0)) < 3.0
         assert latest.ambiguous_area_mm2 is not None
+        assert latest.model.chosen == "circles:1" and latest.model.weight >= 0.9
     finally:
         proc.send_signal(signal.SIGTERM)
         out, err = proc.communicate(timeout=10)

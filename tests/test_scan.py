@@ -1,6 +1,5 @@
 import json
 import math
-import os
 
 import numpy as np
 import pytest
@@ -116,22 +115,31 @@ def test_cli_scan_writes_report_and_plot(tmp_path, run_cli):
     assert png.startswith(b"\x89PNG") and len(png) > 20_000
 
 
-def test_cli_active_scan_with_its_default_budget_finds_the_paper_lump(tmp_path, run_cli):
-    # The budget is learner.max_palpations unless --max-palpations: set to 24 here (40 by default, which
-    # test_active_scan runs on the harder scenes), enough for the paper lump within 1.5 mm.
-    env = {**os.environ, "PALPD_LEARNER__MAX_PALPATIONS": "24"}
-    result = run_cli("scan", "--scene", SCENES / "paper.toml", "--strategy", "active",
-                     "--report", tmp_path / "r.json", env=env)
+def test_cli_active_scan_with_defaults_pins_the_paper_lump_and_says_which_model(tmp_path, run_cli):
+    result = run_cli("scan", "--scene", SCENES / "paper.toml", "--strategy", "active", "--quiet",
+                     "--report", tmp_path / "r.json", "--plot", tmp_path / "r.png")
     assert result.returncode == 0, result.stderr
-    assert "up to 24 palpations" in result.stderr
+    assert "verdict: 1 lump(s) (model circles:1" in result.stdout
     report = json.loads((tmp_path / "r.json").read_text())
-    assert report["strategy"] == "active" and report["palpations"] <= 24
+    assert report["strategy"] == "active" and report["palpations"] <= 25
+    assert report["verdict"] == "lumps" and report["model"]["chosen"] == "circles:1"
+    assert report["model"]["weight"] >= 0.9 and report["model"]["runner_up"]
     m = report["metrics"]
     assert m["lumps_found"] == 1 and m["false_lumps"] == 0
-    assert m["max_center_error_mm"] <= 1.5 and m["max_radius_error_mm"] <= 1.5 and m["min_iou"] >= 0.8
+    assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5 and m["min_iou"] >= 0.9
     (lump,) = report["lumps"]
-    assert 0 < lump["center_sd_mm"] < 5 and 0 < lump["radius_sd_mm"] < 5
+    assert 0 < lump["center_sd_mm"] <= 0.5 and 0 < lump["radius_sd_mm"] <= 0.5
     assert lump["boundary_mm"][0] == lump["boundary_mm"][-1]
+    assert (tmp_path / "r.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_cli_a_budget_spent_before_the_evidence_decides_is_undetermined_and_fails(tmp_path, run_cli):
+    result = run_cli("scan", "--scene", SCENES / "paper.toml", "--strategy", "active", "--max-palpations", "3",
+                     "--quiet", "--report", tmp_path / "r.json")
+    assert result.returncode == 3 and "Traceback" not in result.stderr
+    assert result.stderr.strip().startswith("palpd: undetermined: 3 palpations")
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert report["verdict"] == "undetermined" and "no lump" not in result.stdout
 
 
 def test_cli_confidence_out_of_range_is_one_line(run_cli):

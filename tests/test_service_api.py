@@ -76,12 +76,12 @@ def test_the_client_scans_and_every_reply_and_event_keeps_its_schema(daemon, sch
             while raw.poll(0):
                 topic, payload = raw.recv_multipart()
                 seen.append((topic.decode(), json.loads(payload)))
-        assert ended.state == "ready" and ended.palpations == 14
+        assert ended.state == "ready" and 10 < ended.palpations <= 14  # the learner may decide before the budget
         for topic, payload in seen:
             validate(schemas, topic, payload)
         reply = client.estimate()
         assert reply.estimate.points == sum(p.stiffness_n_per_mm is not None for p in reply.probes) > 10
-        assert [p.index for p in reply.probes] == list(range(14)) and reply.map is not None
+        assert [p.index for p in reply.probes] == list(range(ended.palpations)) and reply.map is not None
         raw_replies = {cmd: daemon.call(cmd, args) for cmd, args in
                        [("estimate.get", {}), ("status", {}), ("bias", {})]}
         daemon.wait_for(lambda s: s["state"] == "ready", what="tare done")

@@ -86,19 +86,44 @@ class Stiffness(Event):
 
 
 class LumpMsg(BaseModel):
-    """One estimated lump with its uncertainty."""
+    """One estimated lump with its uncertainty: what the hypothesis the evidence chose says of it."""
 
     model_config = SENT
     center_mm: tuple[float, float]
     """Centre, tissue frame."""
     radius_mm: float
-    """Radius of the circle fitted to the 50 % boundary."""
+    """Radius (an ellipse's: its equal-area radius, √(major·minor)); a lump's radius is where its felt
+    stiffness is halfway between tissue and lump."""
     center_sd_mm: float
     """Standard deviation of the centre."""
     radius_sd_mm: float
     """Standard deviation of the radius."""
     boundary_mm: list[tuple[float, float]]
     """The lump's 50 % boundary, a closed polygon [[x, y], ...]."""
+    axes_mm: Optional[tuple[float, float]] = None
+    """Ellipse only: (major, minor) semi-axes."""
+    axes_sd_mm: Optional[tuple[float, float]] = None
+    """Ellipse only: their standard deviations."""
+    angle_deg: Optional[float] = None
+    """Ellipse only: the major axis's angle from +x, in [0, 180)."""
+    angle_sd_deg: Optional[float] = None
+    """Ellipse only: its standard deviation."""
+    edge_mm: Optional[float] = None
+    """Where modelled: the edge width, 75 % to 25 % of the lump's height along a radius."""
+    edge_sd_mm: Optional[float] = None
+    """Where modelled: its standard deviation."""
+
+
+class ModelChoice(BaseModel):
+    """The lump hypothesis the evidence chose."""
+
+    model_config = SENT
+    chosen: str
+    """`none`, `circles:K`, `ellipse:K` or `free-form`."""
+    weight: float
+    """Its posterior weight among the hypotheses compared."""
+    runner_up: Optional[str] = None
+    """The next most likely hypothesis (null when there was no other)."""
 
 
 class Estimate(Event):
@@ -114,6 +139,8 @@ class Estimate(Event):
     """The scan that made this estimate has ended."""
     ambiguous_area_mm2: Optional[float] = None
     """Area whose P(lump) lies between 1 - c and c (c: learner.confidence)."""
+    model: Optional[ModelChoice] = None
+    """The hypothesis the evidence chose, its weight and the runner-up (null before the first reading)."""
 
 
 class FaultMsg(Event):

@@ -1,7 +1,6 @@
 """Scans for the tradeoff benchmark: the first palpation at which each strategy meets the targets."""
 from __future__ import annotations
 
-from drivers.sim.scene import truth_lumps
 from palpd import metrics
 from palpd.bench import open_simulated_bench
 from palpd.commands.bench_tradeoff import BUDGET, RASTER_SIDES, TARGET
@@ -35,7 +34,7 @@ class _UntilOnTarget:
 def _scan_until(scene, seed: int, settings, planner, lumps_now) -> dict:
     """Scan until the estimate meets the targets (or the plan ends); lumps_now(probes) is the estimate so far."""
     bench = open_simulated_bench(settings, scene, seed=seed)
-    truth, t0, first, probes = truth_lumps(scene), bench.clock.now(), {}, []
+    truth, t0, first, probes = metrics.scene_truth(scene), bench.clock.now(), {}, []
 
     def progress(done, _total, probe):
         probes.append(probe)
@@ -77,7 +76,7 @@ def first_on_target_raster(scene, seed: int) -> dict:
     for side in RASTER_SIDES:
         bench = open_simulated_bench(settings, scene, seed=seed)
         report = run_scan(bench, settings, plan("raster", scene.tissue.size_mm, side * side, seed))
-        m = metrics.compare(truth_lumps(scene), report["lumps"])
+        m = metrics.compare(metrics.scene_truth(scene), report["lumps"])
         result = {"scene": scene.name, "seed": seed, "lumps_true": len(scene.lump),
                   "palpations": report["palpations"] if on_target(m) else None,
                   "robot_time_s": report["robot_time_s"] if on_target(m) else None,
@@ -94,7 +93,7 @@ def active_scan(scene, seed: int, change: dict) -> dict:
     settings = Settings().updated(scan={"strategy": "active"}, learner=learner, palpation=palpation)
     planner = plan("active", scene.tissue.size_mm, settings.learner.max_palpations, seed, settings)
     report = run_scan(open_simulated_bench(settings, scene, seed=seed), settings, planner)
-    m = metrics.compare(truth_lumps(scene), report["lumps"])
+    m = metrics.compare(metrics.scene_truth(scene), report["lumps"])
     return {"palpations": report["palpations"], "robot_time_s": report["robot_time_s"],
             "max_center_error_mm": m["max_center_error_mm"], "max_radius_error_mm": m["max_radius_error_mm"],
             "min_iou": m["min_iou"], "false_lumps": m["false_lumps"], "lumps_missed": m["lumps_missed"]}

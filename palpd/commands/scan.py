@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import sys
 
-from palpd.errors import EXIT_FAILURE
+from palpd.errors import EXIT_FAILURE, EXIT_UNDETERMINED
 
 
 def add_parser(subparsers):
@@ -12,7 +12,10 @@ def add_parser(subparsers):
                       help="scene file (TOML) or the name of a shipped scene (`palpd scenes`)")
     scan.add_argument("--strategy", choices=["active", "raster", "random"], help="where to palpate (default raster)")
     scan.add_argument("--max-palpations", type=int, metavar="N")
-    scan.add_argument("--confidence", type=float, metavar="P", help="stopping confidence (active strategy)")
+    scan.add_argument("--confidence", type=float, metavar="P",
+                      help="stop once the lump hypothesis the evidence chose has this weight (active; default 0.9)")
+    scan.add_argument("--tolerance-mm", type=float, metavar="T",
+                      help="...and every centre and radius has posterior sd at most T (active; default 0.5)")
     scan.add_argument("--seed", type=int, metavar="N")
     scan.add_argument("--train", metavar="FILE.csv",
                       help="labelled dataset (tumor column): learn the lump threshold from it (active strategy)")
@@ -31,7 +34,7 @@ def run(args) -> int:
     from palpd.shipped import load_scene_named
 
     settings = scan_settings(args.config, args.strategy, args.max_palpations, args.seed, args.depth_mm,
-                             args.speed_mm_s, args.confidence, args.train)
+                             args.speed_mm_s, args.confidence, args.train, args.tolerance_mm)
     scene = load_scene_named(args.scene)
     # Heavy imports (scipy.stats, scikit-learn, matplotlib) only once arguments, config and scene are known good.
     from palpd.files import write_json
@@ -55,6 +58,10 @@ def run(args) -> int:
         fault = report["faults"][0]
         print(f"palpd: scan stopped by a safety fault ({fault['code']}): {fault['message']}", file=sys.stderr)
         return EXIT_FAILURE
+    if report["verdict"] == "undetermined":
+        print(f"palpd: undetermined: {report['palpations']} palpations did not decide whether and which lumps "
+              f"there are (raise --max-palpations or lower --confidence)", file=sys.stderr)
+        return EXIT_UNDETERMINED
     return 0
 
 
@@ -70,17 +77,34 @@ def _progress_printer(args):
 def _summary(report: dict) -> str:
     lines = [f"{report['palpations']} palpations in {report['robot_time_s']:.1f} s robot time "
              f"({report['wall_time_s']:.1f} s wall), max force {report['max_contact_force_n']:.2f} N"]
-    if not report["lumps"]:
-        lines.append("no lump found")
+    lines.append(_verdict_line(report))
     for i, lump in enumerate(report["lumps"], 1):
-        (x, y), r = lump["center_mm"], lump["radius_mm"]
-        lines.append(f"lump {i}: centre ({x:.2f}, {y:.2f}) ± {lump['center_sd_mm']:.2f} mm, "
-                     f"radius {r:.2f} ± {lump['radius_sd_mm']:.2f} mm")
+        lines.append(f"lump {i}: {_lump_line(lump)}")
     m = report["metrics"]
     if m["lumps_true"] or m["false_lumps"]:
         lines.append(f"vs truth: {m['lumps_found']}/{m['lumps_true']} found, {m['false_lumps']} false, "
                      f"centre error {_mm(m['max_center_error_mm'])}, radius error {_mm(m['max_radius_error_mm'])}")
     return "\n".join(lines)
+
+
+def _verdict_line(report: dict) -> str:
+    model = report.get("model")
+    chosen = "" if not model else (f" (model {model['chosen']}, weight {model['weight']:.3f}"
+                                   + (f", runner-up {model['runner_up']})" if model["runner_up"] else ")"))
+    text = {"none": "no lump", "lumps": f"{len(report['lumps'])} lump(s)",
+            "undetermined": "undetermined"}[report["verdict"]]
+    return f"verdict: {text}{chosen}"
+
+
+def _lump_line(lump: dict) -> str:
+    (x, y), r = lump["center_mm"], lump["radius_mm"]
+    text = f"centre ({x:.2f}, {y:.2f}) ± {lump['center_sd_mm']:.2f} mm, radius {r:.2f} ± {lump['radius_sd_mm']:.2f} mm"
+    if "axes_mm" in lump:
+        (a, b), (sa, sb) = lump["axes_mm"], lump["axes_sd_mm"]
+        text += f", axes {a:.2f} ± {sa:.2f} / {b:.2f} ± {sb:.2f} mm at {lump['angle_deg']:.1f}°"
+    if "edge_mm" in lump:
+        text += f", edge {lump['edge_mm']:.2f} mm"
+    return text
 
 
 def _mm(value) -> str:

@@ -18,7 +18,7 @@ def add_parser(subparsers):
 
 
 def run(args) -> int:
-    from palpd.dataset import read_dataset
+    from palpd.datafile import read_dataset
     from palpd.errors import UsageError
     from palpd.files import write_json
     from palpd.study.methods import Options

@@ -21,6 +21,7 @@ import sys
 
 from palpd.control.ring import FLAG_FAULT, FLAG_MOTORS_ON, FLAG_TASK, SampleRing
 from palpd.errors import PalpdError, ScanFault
+from palpd.threads import pin_blas_to_one_thread
 
 IDLE_BEAT_S = 0.05
 PR_SET_PDEATHSIG = 1
@@ -28,6 +29,7 @@ PR_SET_PDEATHSIG = 1
 
 def servo_main(conn, ring_name: str, settings, scene, seed: int, realtime: bool) -> None:
     """Entry point of the child (multiprocessing spawn)."""
+    pin_blas_to_one_thread()  # inherited from a palpd parent already; also when a script started us
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the parent, which tells us to quit
     signal.signal(signal.SIGTERM, _exit_on_signal)
     _die_with_parent()

@@ -78,7 +78,8 @@ class ScanJob:
         entry = journal_entry(len(self.session.entries), probe, worker.bench.clock.now())
         entry["recording"] = self.recording  # whose raw samples hold it (each run's servo clock starts anew)
         self.session.journal(entry)
-        self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0)
+        self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0,
+                               entry.get("target_xy_mm"))
         publish_entry(worker, entry)
         worker.event("estimate", **self.estimator.estimate())
         worker.send({"kind": "map", "map": self.estimator.posterior_map()})  # made here: the learner is ours

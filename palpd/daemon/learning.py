@@ -32,9 +32,14 @@ class LearnerEstimator:
         self.k_n_per_mm: list[float] = []
         self._next = None  # (palpations seen, answer): next_probe is asked by the planner and the estimate
 
-    def observe(self, xy_mm, stiffness_n_per_mm: float | None, sd_n_per_mm: float = 0.0) -> None:
+    def observe(self, xy_mm, stiffness_n_per_mm: float | None, sd_n_per_mm: float = 0.0,
+                target_xy_mm=None) -> None:
+        """A journaled palpation; one without a stiffness counts where it was aimed (its record's
+        contact point is (0, 0) then), so the learner never asks for that spot again."""
+        if stiffness_n_per_mm is None and target_xy_mm is not None:
+            xy_mm = target_xy_mm
         self.learner.observe((xy_mm[0] - self.cx, xy_mm[1] - self.cy), stiffness_n_per_mm, sd_n_per_mm)
-        if self.learner.gp.n > len(self.k_n_per_mm):  # the learner took it as a stiffness point
+        if self.learner.obs.n > len(self.k_n_per_mm):  # the learner took it as a stiffness point
             self.xy_mm.append((float(xy_mm[0]), float(xy_mm[1])))
             self.k_n_per_mm.append(float(stiffness_n_per_mm))
 
@@ -49,7 +54,8 @@ class LearnerEstimator:
     def estimate(self) -> dict:
         """Fields of the bus `estimate` event."""
         return {"points": len(self.k_n_per_mm), "lumps": [self._shifted(lump.as_dict()) for lump in self.learner.lumps()],
-                "next_probe_mm": self.next_probe(), "ambiguous_area_mm2": self.learner.ambiguous_area_mm2()}
+                "next_probe_mm": self.next_probe(), "ambiguous_area_mm2": self.learner.ambiguous_area_mm2(),
+                "model": self.learner.model()}
 
     def posterior_map(self, max_cells_per_side: int = MAP_CELLS_PER_SIDE) -> dict | None:
         """The learner's posterior on (at most) a max × max subgrid, tissue frame: reply.estimate.get's `map`,

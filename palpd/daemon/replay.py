@@ -81,7 +81,7 @@ def replay(session_dir: Path, settings) -> dict:
         k, sd = refit(trace, settings)
         if trace.get("stiffness_n_per_mm") is not None and k is not None:
             worst_k = max(worst_k, abs(k - trace["stiffness_n_per_mm"]))
-        estimator.observe(trace["xy_mm"], k, sd)
+        estimator.observe(trace["xy_mm"], k, sd, trace.get("target_xy_mm"))
     estimate = estimator.estimate()
     return {"palpations": len(traces), "segmented": sum(bool(t.get("segmented")) for t in traces), "max_stiffness_difference_n_per_mm": worst_k, "estimate": estimate,
             "recorded": recorded_estimate, "reproduced": same_lumps(estimate, recorded_estimate)}

@@ -1,4 +1,4 @@
-"""The online learner: a GP map of stiffness, P(lump) at a learned threshold, lumps and the next probe."""
+"""The online learner: hypotheses about the lumps weighed by their evidence, the chosen one's lumps and next probe."""
 from palpd.learner.model import Learner
 from palpd.learner.planner import ActivePlanner, palpation_time_s
 

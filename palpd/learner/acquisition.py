@@ -1,17 +1,27 @@
-"""Where to palpate: a space-filling first design, then the 50 % boundary.
+"""Where to palpate: a small space-filling first design, then where a reading teaches the most.
 
-The acquisition is Bryan et al.'s straddle, z·σ − |μ − τ|, with z = Φ⁻¹(c) so
-that it is positive exactly where P(lump) is between 1 − c and c: the learner
-probes where it is least sure, and stops when little of that area is left.
-It is divided by the robot time the move adds (travel at the travel speed,
-in units of one palpation), and cells closer than the minimum spacing to a
-probe are never chosen again.
+- While the hypotheses disagree (the chosen one's weight is below the
+  confidence asked for), where their predictions differ most relative to the
+  noise and their own uncertainty: ½·log(1 + Var_m[μ_m] / (σ² + E_m[v_m])), the
+  information a reading carries about which hypothesis is right (BALD).
+- Once one is chosen, where a reading shrinks the posterior variance of what
+  is reported the most: for a parametric model the summed variance of every
+  centre coordinate and radius (or axis), |W Σ g|² / (gᵀ Σ g + σ²) with g the
+  model's gradient there (the lumps' boundaries, naturally); for the free-form
+  map Bryan et al.'s straddle, z·σ − |μ − τ|, at each region's 50 % level.
+
+Every score is divided by the robot time the move adds (travel at the travel
+speed, in units of one palpation), and cells closer than the minimum spacing to
+an earlier probe are never chosen again.
 """
 from __future__ import annotations
 
 import numpy as np
 from scipy.special import ndtri
 from scipy.stats import qmc
+
+from palpd.learner import shapes
+from palpd.learner.describe import quantities
 
 
 def initial_design(size_mm: tuple[float, float], count: int, seed: int) -> list[tuple[float, float]]:
@@ -35,25 +45,52 @@ def _tour(points: np.ndarray, start: np.ndarray) -> list[tuple[float, float]]:
     return order
 
 
+def moments(fit, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A parametric fit's predicted log stiffness at xy, its linearised variance and its gradient."""
+    f, jac = shapes.evaluate(fit.family, fit.theta, xy)
+    return f, ((jac @ fit.cov) * jac).sum(axis=1), jac
+
+
+def boundary_gain(fit, xy: np.ndarray, noise_var: float) -> np.ndarray:
+    """Total variance (mm²) taken off the reported centres and radii by one reading at each cell."""
+    _, var, jac = moments(fit, xy)
+    w = quantities(fit)
+    if len(w) == 0:
+        return np.zeros(len(xy))
+    projected = jac @ (fit.cov @ w.T)  # (cells × quantities): cov(quantity, reading)
+    return (projected**2).sum(axis=1) / (var + noise_var)
+
+
+def disagreement(predictions: list[tuple[float, np.ndarray, np.ndarray]], noise_var: float) -> np.ndarray:
+    """Information (nats) a reading carries about which hypothesis is right; (weight, mean, var) each."""
+    weights = np.array([w for w, _, _ in predictions])
+    weights = weights / weights.sum()
+    means = np.array([m for _, m, _ in predictions])
+    variances = np.array([v for _, _, v in predictions])
+    centre = weights @ means
+    spread = weights @ (means - centre) ** 2
+    return 0.5 * np.log1p(spread / (noise_var + weights @ variances))
+
+
 def straddle(mean: np.ndarray, std: np.ndarray, tau: np.ndarray, confidence: float) -> np.ndarray:
     return float(ndtri(confidence)) * std - np.abs(mean - tau)
 
 
-def best_candidate(score: np.ndarray, grid_xy: np.ndarray, blocked: np.ndarray, here_mm,
+def best_candidate(score: np.ndarray, cells_xy: np.ndarray, blocked: np.ndarray, here_mm,
                    travel_mm_per_palpation: float) -> tuple[float, float] | None:
-    """The grid cell with the most straddle per unit of robot time, or None if nothing is ambiguous."""
+    """The cell with the most score per unit of robot time, or None if nothing scores."""
     usable = (score > 0.0) & ~blocked
     if not usable.any():
         return None
     gain = np.where(usable, score, -np.inf)
     if here_mm is not None:
-        travel = np.hypot(grid_xy[:, 0] - here_mm[0], grid_xy[:, 1] - here_mm[1])
+        travel = np.hypot(cells_xy[:, 0] - here_mm[0], cells_xy[:, 1] - here_mm[1])
         gain = gain / (1.0 + travel / travel_mm_per_palpation)
     best = int(np.argmax(gain))
-    return float(grid_xy[best, 0]), float(grid_xy[best, 1])
+    return float(cells_xy[best, 0]), float(cells_xy[best, 1])
 
 
-def block_near(blocked: np.ndarray, grid_xy: np.ndarray, xy_mm, spacing_mm: float) -> None:
+def block_near(blocked: np.ndarray, cells_xy: np.ndarray, xy_mm, spacing_mm: float) -> None:
     """Mark the cells within the minimum spacing of a new probe."""
-    near = np.hypot(grid_xy[:, 0] - xy_mm[0], grid_xy[:, 1] - xy_mm[1]) < spacing_mm
+    near = np.hypot(cells_xy[:, 0] - xy_mm[0], cells_xy[:, 1] - xy_mm[1]) < spacing_mm
     blocked |= near

@@ -1,12 +1,15 @@
-"""A Gaussian process over (x, y) that is updated one point at a time on a fixed candidate grid.
+"""A Gaussian process over (x, y) of log stiffness, updated one point at a time on a fixed grid.
 
-With the prior mean and the kernel hyperparameters held fixed, adding a point
-appends one row to the Cholesky factor L, to w = L⁻¹(y − m) and to
-V = L⁻¹ K(points, grid); the grid's posterior mean and variance then change by
-v·w and −v² for the new row v. One update costs O(n·G) instead of the O(n²·G)
-of a refit, which is what keeps the learner within its latency budget at a few
-hundred points. Hyperparameters are refitted (scikit-learn's marginal-likelihood
-optimiser) only when the caller decides it pays; a refit rebuilds everything.
+The kernel is a Matérn 5/2 field on a background plane whose level and slopes
+have the same Gaussian priors as the parametric models' (so the GP's marginal
+likelihood is the evidence of "background plus a free-form field", comparable
+with theirs). With the kernel fixed, adding a point appends one row to the
+Cholesky factor L, to w = L⁻¹(y − m) and to V = L⁻¹ K(points, grid); the grid's
+posterior mean and variance change by v·w and −v² for the new row v: O(n·G).
+A refit (new kernel) builds everything in one block: one Cholesky of K + D and
+one triangular solve for [y − m | K(points, grid)]; only when that factor is
+not positive definite (the same spot probed twice with no noise) does it fall
+back to the row-by-row path, whose floor on each pivot keeps it finite.
 """
 from __future__ import annotations
 
@@ -15,23 +18,43 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import solve_triangular
+from scipy.linalg import LinAlgError, cholesky, solve_triangular
 
 JITTER = 1e-9  # keeps the factor positive definite when a point is probed twice with zero noise
+BLOCK_ROWS = 128  # V grows by blocks of rows (float32: a gemv over it is memory-bound, half the bytes is half the time)
 SQRT5 = math.sqrt(5.0)
+LOG_2PI = math.log(2.0 * math.pi)
 
 
 @dataclass(frozen=True)
 class Hyper:
-    mean: float            # prior mean (N/mm): the tissue level
-    signal_var: float      # (N/mm)²
+    mean: float            # prior mean of log stiffness (the background level's prior centre)
+    signal_var: float      # Matérn field variance, (log units)²
     length_mm: float
-    white_var: float       # noise beyond each point's own fit uncertainty, (N/mm)²
+    white_var: float       # noise beyond each point's own fit uncertainty, (log units)²
+    level_var: float = 4.0     # background level prior variance (evidence.LEVEL_SD²)
+    slope_var: float = 0.0625  # background slope prior variance, per half-size (evidence.SLOPE_SD²)
+    scale_mm: float = 30.0     # the half-size the slopes are per
 
 
-def matern52(a: np.ndarray, b: np.ndarray, hyper: Hyper) -> np.ndarray:
+def kernel(a: np.ndarray, b: np.ndarray, hyper: Hyper) -> np.ndarray:
     r = np.sqrt(np.maximum(_sq_dist(a, b), 0.0)) * (SQRT5 / hyper.length_mm)
-    return hyper.signal_var * (1.0 + r + r * r / 3.0) * np.exp(-r)
+    plane = hyper.level_var + hyper.slope_var * (a @ b.T) / hyper.scale_mm**2
+    return hyper.signal_var * (1.0 + r + r * r / 3.0) * np.exp(-r) + plane
+
+
+def kernel_to_grid(p: np.ndarray, grid_xy: np.ndarray, hyper: Hyper) -> np.ndarray:
+    """kernel(p, grid) for one point, without the n×G distance matrix product (float32: V is float32 too)."""
+    grid = grid_xy.astype(np.float32) if grid_xy.dtype != np.float32 else grid_xy
+    to_r = np.float32(SQRT5 / hyper.length_mm)
+    r = np.hypot(grid[:, 0] - np.float32(p[0]), grid[:, 1] - np.float32(p[1])) * to_r
+    slope = np.float32(hyper.slope_var / hyper.scale_mm**2)
+    plane = np.float32(hyper.level_var) + slope * (grid @ p.astype(np.float32))
+    return np.float32(hyper.signal_var) * (1.0 + r + r * r / np.float32(3.0)) * np.exp(-r) + plane
+
+
+def prior_var(grid_xy: np.ndarray, hyper: Hyper) -> np.ndarray:
+    return hyper.signal_var + hyper.level_var + hyper.slope_var * (grid_xy * grid_xy).sum(1) / hyper.scale_mm**2
 
 
 def _sq_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -39,10 +62,11 @@ def _sq_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class IncrementalGP:
-    """Posterior mean and variance of the latent field on `grid_xy` (G × 2)."""
+    """Posterior mean and variance of the latent log stiffness on `grid_xy` (G × 2)."""
 
     def __init__(self, grid_xy: np.ndarray, hyper: Hyper) -> None:
         self.grid_xy = np.ascontiguousarray(grid_xy, dtype=float)
+        self._grid32 = self.grid_xy.astype(np.float32)
         self.hyper = hyper
         self.xy = np.empty((0, 2))
         self.y = np.empty(0)
@@ -60,71 +84,120 @@ class IncrementalGP:
         self._append_row(self.n - 1)
 
     def refit(self, hyper: Hyper) -> None:
-        """New hyperparameters: rebuild the factor and the grid posterior from all points."""
+        """New kernel: one Cholesky and one triangular solve (row by row only for a singular factor)."""
         self.hyper = hyper
         self._reset_factor(capacity=max(64, 2 * self.n))
-        for i in range(self.n):
-            self._append_row(i)
+        if self.n and not self._block_factor():
+            self._reset_factor(capacity=max(64, 2 * self.n))
+            for i in range(self.n):
+                self._append_row(i)
 
     def std(self) -> np.ndarray:
         return np.sqrt(np.maximum(self.var, 1e-12 * self.hyper.signal_var))
 
+    def log_marginal_likelihood(self) -> float:
+        """log p(y | kernel): the evidence of the free-form model at this kernel."""
+        n = self.n
+        w = self._w[:n]
+        return float(-0.5 * w @ w - self._log_det - 0.5 * n * LOG_2PI)
+
+    def _self_var(self, i: int) -> float:
+        h = self.hyper
+        p = self.xy[i]
+        return float(h.signal_var + h.level_var + h.slope_var * (p @ p) / h.scale_mm**2
+                     + h.white_var + self.noise_var[i] + JITTER * h.signal_var)
+
+    def _block_factor(self) -> bool:
+        n, h = self.n, self.hyper
+        k = kernel(self.xy, self.xy, h)
+        k[np.diag_indices(n)] = [self._self_var(i) for i in range(n)]
+        try:
+            low = cholesky(k, lower=True, check_finite=False)
+        except LinAlgError:
+            return False
+        rhs = np.column_stack([self.y - h.mean, kernel(self.xy, self.grid_xy, h)])
+        solved = solve_triangular(low, rhs, lower=True, check_finite=False)
+        self._L[:n, :n], self._w[:n] = low, solved[:, 0]
+        self._log_det = float(np.sum(np.log(np.diag(low))))
+        for start in range(0, n, BLOCK_ROWS):
+            block = np.zeros((BLOCK_ROWS, len(self.grid_xy)), dtype=np.float32)
+            part = solved[start:start + BLOCK_ROWS, 1:]
+            block[:len(part)] = part
+            self._blocks.append(block)
+        grid_part = solved[:, 1:]
+        self.mean = h.mean + grid_part.T @ solved[:, 0]
+        self.var = prior_var(self.grid_xy, h) - np.einsum("ij,ij->j", grid_part, grid_part)
+        return True
+
     def _reset_factor(self, capacity: int) -> None:
         self._L = np.zeros((capacity, capacity))
-        self._V = np.zeros((capacity, len(self.grid_xy)))
         self._w = np.zeros(capacity)
+        self._log_det = 0.0
+        self._blocks: list[np.ndarray] = []  # V = L⁻¹ K(points, grid) in float32 row blocks: no copy as it grows
         self.mean = np.full(len(self.grid_xy), self.hyper.mean)
-        self.var = np.full(len(self.grid_xy), self.hyper.signal_var)
+        self.var = prior_var(self.grid_xy, self.hyper)
 
     def _append_row(self, i: int) -> None:
         if i >= self._L.shape[0]:
             self._grow(2 * self._L.shape[0])
         h, p = self.hyper, self.xy[i:i + 1]
-        k_old = matern52(self.xy[:i], p, h)[:, 0]
+        k_old = kernel(self.xy[:i], p, h)[:, 0]
         row = solve_triangular(self._L[:i, :i], k_old, lower=True, check_finite=False) if i else k_old
-        k_self = h.signal_var + h.white_var + self.noise_var[i] + JITTER * h.signal_var
-        d = math.sqrt(max(k_self - float(row @ row), JITTER * h.signal_var))
+        d = math.sqrt(max(self._self_var(i) - float(row @ row), JITTER * h.signal_var))
         self._L[i, :i], self._L[i, i] = row, d
+        self._log_det += math.log(d)
         self._w[i] = (self.y[i] - h.mean - float(row @ self._w[:i])) / d
-        v = matern52(p, self.grid_xy, h)[0]
+        v = kernel_to_grid(p[0], self._grid32, h).astype(np.float64)
         if i:
-            v -= row @ self._V[:i]
+            v -= self._project(row)
         v /= d
-        self._V[i] = v
+        self._store(i, v)
         self.mean += v * self._w[i]
         self.var -= v * v
 
+    def _project(self, row: np.ndarray) -> np.ndarray:
+        """row @ V[:len(row)] over the row blocks."""
+        out = np.zeros(len(self.grid_xy))
+        row32 = row.astype(np.float32)
+        for b, block in enumerate(self._blocks):
+            part = row32[b * BLOCK_ROWS:(b + 1) * BLOCK_ROWS]
+            if part.size:
+                out += part @ block[:part.size]
+        return out
+
+    def _store(self, i: int, v: np.ndarray) -> None:
+        if i // BLOCK_ROWS >= len(self._blocks):
+            self._blocks.append(np.zeros((BLOCK_ROWS, len(self.grid_xy)), dtype=np.float32))
+        self._blocks[i // BLOCK_ROWS][i % BLOCK_ROWS] = v
+
     def _grow(self, capacity: int) -> None:
         n = self._L.shape[0]
-        L, V, w = self._L, self._V, self._w
+        L, w = self._L, self._w
         self._L = np.zeros((capacity, capacity))
         self._L[:n, :n] = L
-        self._V = np.zeros((capacity, V.shape[1]))
-        self._V[:n] = V
         self._w = np.zeros(capacity)
         self._w[:n] = w
 
 
-def fit_hyper(xy: np.ndarray, y: np.ndarray, noise_var: np.ndarray, mean: float, start: Hyper,
-              length_bounds_mm: tuple[float, float], min_signal_sd: float) -> Hyper:
-    """Maximum-marginal-likelihood kernel for the points, with the prior mean given.
-
-    The signal is held at least `min_signal_sd`, so a field that looks flat so far
-    still admits a lump of the smallest contrast that matters where it was not probed.
-    """
+def fit_hyper(xy: np.ndarray, y: np.ndarray, noise_var: np.ndarray, start: Hyper,
+              length_bounds_mm: tuple[float, float], white_floor_var: float) -> Hyper:
+    """Maximum-marginal-likelihood Matérn field and white noise, the background plane's priors fixed."""
     from sklearn.exceptions import ConvergenceWarning
     from sklearn.gaussian_process import GaussianProcessRegressor
-    from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
+    from sklearn.gaussian_process.kernels import ConstantKernel, DotProduct, Matern, WhiteKernel
 
-    scale = max(float(np.std(y)), min_signal_sd, 1e-9)  # the optimiser works in units of the data's spread
-    signal_bounds = ((min_signal_sd / scale) ** 2, 100.0)
-    kernel = (ConstantKernel(float(np.clip(start.signal_var / scale**2, *signal_bounds)), signal_bounds)
-              * Matern(float(np.clip(start.length_mm, *length_bounds_mm)), length_bounds_mm, nu=2.5)
-              + WhiteKernel(float(np.clip(start.white_var / scale**2, 1e-6, 1.0)), (1e-6, 1.0)))
-    gpr = GaussianProcessRegressor(kernel, alpha=noise_var / scale**2 + 1e-10, normalize_y=False)
+    scale = start.scale_mm  # the optimiser works in half-sizes, where the plane's slopes are per unit
+    bounds = (length_bounds_mm[0] / scale, length_bounds_mm[1] / scale)
+    field = (ConstantKernel(float(np.clip(start.signal_var, 1e-6, 1e2)), (1e-6, 1e2))
+             * Matern(float(np.clip(start.length_mm / scale, *bounds)), bounds, nu=2.5))
+    plane = ConstantKernel(start.slope_var, "fixed") * DotProduct(
+        math.sqrt(start.level_var / start.slope_var), "fixed")
+    white_bounds = (white_floor_var, max(1.0, 2.0 * white_floor_var))
+    white = WhiteKernel(float(np.clip(start.white_var, *white_bounds)), white_bounds)
+    gpr = GaussianProcessRegressor(field + plane + white, alpha=noise_var + JITTER, normalize_y=False)
     with warnings.catch_warnings():  # a bound reached is an answer here, not a problem
         warnings.simplefilter("ignore", ConvergenceWarning)
-        gpr.fit(xy, (y - mean) / scale)
+        gpr.fit(xy / scale, y - start.mean)
     k = gpr.kernel_
-    return Hyper(mean, k.k1.k1.constant_value * scale**2, float(k.k1.k2.length_scale),
-                 k.k2.noise_level * scale**2)
+    return Hyper(start.mean, k.k1.k1.k1.constant_value, float(k.k1.k1.k2.length_scale) * scale,
+                 k.k2.noise_level, start.level_var, start.slope_var, start.scale_mm)

@@ -1,10 +1,10 @@
 """Lumps from the learner's map: connected regions where P(lump) > 0.5.
 
 Each region that an observed stiff point supports (the model alone never makes
-a lump) becomes a lump with its 50 % boundary as a closed polygon, a centre and
-radius from a circle fitted to that boundary (only its part inside the palpable
-area, so a lump cut by the edge keeps its true radius), and their uncertainties
-from how well the boundary is pinned down: σ/|∇μ| across it.
+a lump) becomes a lump with its 50 % boundary as a closed polygon, its centroid
+and equal-area radius (a free-form region has no circle to report), and
+uncertainties from how well the boundary is pinned down: σ/|∇μ| across it,
+through a circle fitted to the boundary.
 """
 from __future__ import annotations
 
@@ -16,6 +16,7 @@ import numpy as np
 from scipy import ndimage
 
 from palpd.estimate import LumpEstimate
+from palpd.learner.hypotheses import Region
 from palpd.learner.threshold import EIGHT_CONNECTED
 
 MIN_REGION_CELLS = 2
@@ -37,20 +38,54 @@ class Map:
 
 def find_lumps(m: Map, stiff_xy: np.ndarray) -> list[LumpEstimate]:
     """Lumps where the map says P > 0.5, each backed by at least one observed stiff point."""
-    labels, count = ndimage.label(m.mean > m.tau, EIGHT_CONNECTED)
-    supported = _supported_labels(m, labels, stiff_xy)
+    labels, regions = _backed_regions(m, stiff_xy)
     lumps = []
-    for label in range(1, count + 1):
-        region = labels == label
-        if label not in supported or np.count_nonzero(region) < MIN_REGION_CELLS:
-            continue
+    for region in regions:
         lump = _one_lump(m, region, (labels > 0) & ~region)
         if lump is not None:
             lumps.append(lump)
     return lumps
 
 
+def regions_of(m: Map, stiff_xy: np.ndarray, stiff_k: np.ndarray, tissue_n_per_mm: float) -> list[Region]:
+    """The map's backed regions as starts for the parametric hypotheses: centre, size, stretch, contrast."""
+    _, regions = _backed_regions(m, stiff_xy)
+    gx, gy = np.meshgrid(m.xs, m.ys)
+    out = []
+    for region in regions:
+        x, y = gx[region], gy[region]
+        inside = _inside(m, region, stiff_xy)
+        peak = float(stiff_k[inside].max()) if inside.any() else float(m.mean[region].max())
+        out.append(Region((float(x.mean()), float(y.mean())), math.sqrt(x.size / math.pi) * m.cell_mm,
+                          _stretch(np.cov(np.vstack([x, y])) if x.size > 2 else np.eye(2)),
+                          peak / tissue_n_per_mm - 1.0))
+    return out
+
+
+def _inside(m: Map, region: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    cols = np.clip(np.rint((xy[:, 0] - m.xs[0]) / m.cell_mm).astype(int), 0, len(m.xs) - 1)
+    rows = np.clip(np.rint((xy[:, 1] - m.ys[0]) / m.cell_mm).astype(int), 0, len(m.ys) - 1)
+    return region[rows, cols]
+
+
+def _stretch(cov: np.ndarray) -> tuple[float, float]:
+    """(e1, e2) of shapes.py for the ellipse with these second moments."""
+    values, vectors = np.linalg.eigh(cov)
+    ratio = 0.5 * math.log(max(values[1], 1e-9) / max(values[0], 1e-9))  # log(major / minor)
+    angle = math.atan2(vectors[1, 1], vectors[0, 1])
+    return ratio * math.cos(2.0 * angle), ratio * math.sin(2.0 * angle)
+
+
+def _backed_regions(m: Map, stiff_xy: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+    labels, count = ndimage.label(m.mean > m.tau, EIGHT_CONNECTED)
+    supported = _supported_labels(m, labels, stiff_xy)
+    regions = [labels == label for label in range(1, count + 1) if label in supported]
+    return labels, [r for r in regions if np.count_nonzero(r) >= MIN_REGION_CELLS]
+
+
 def _supported_labels(m: Map, labels: np.ndarray, stiff_xy: np.ndarray) -> set[int]:
+    if len(stiff_xy) == 0:
+        return set()
     near = ndimage.grey_dilation(labels, footprint=np.ones((5, 5), dtype=bool))  # a probe a cell or two outside
     cols = np.clip(np.rint((stiff_xy[:, 0] - m.xs[0]) / m.cell_mm).astype(int), 0, len(m.xs) - 1)
     rows = np.clip(np.rint((stiff_xy[:, 1] - m.ys[0]) / m.cell_mm).astype(int), 0, len(m.ys) - 1)
@@ -63,9 +98,12 @@ def _one_lump(m: Map, region: np.ndarray, others: np.ndarray) -> LumpEstimate | 
         return None
     inside = _off_edge(m, polygon[:-1])
     fit_points = inside if len(inside) >= 5 else polygon[:-1]
-    centre, radius, jac = _circle_fit(fit_points)
-    centre_sd, radius_sd = _fit_uncertainty(m, fit_points, jac, radius)
-    return LumpEstimate((float(centre[0]), float(centre[1])), float(radius), centre_sd, radius_sd,
+    _, circle_radius, jac = _circle_fit(fit_points)
+    centre_sd, radius_sd = _fit_uncertainty(m, fit_points, jac, circle_radius)
+    # A free-form region has no circle to report: its centroid and equal-area radius (within the area).
+    gx, gy = np.meshgrid(m.xs, m.ys)
+    radius = math.sqrt(np.count_nonzero(region) / math.pi) * m.cell_mm
+    return LumpEstimate((float(gx[region].mean()), float(gy[region].mean())), radius, centre_sd, radius_sd,
                         polygon.tolist())
 
 

@@ -1,31 +1,38 @@
-"""The online learner: stiffness points in, P(lump) map, lumps and the next probe out.
+"""The online learner: readings in; the hypothesis the evidence chooses, its lumps and the next probe out.
 
 Usable embedded (palpd scan --strategy active, through ActivePlanner) and as its
-own process (palpd learner). One observe() is an O(n·G) update of the GP on
-the candidate grid; hyperparameters are refitted only while there are few
-points, when the data has grown by `refit_growth`, or when the contrast test
-changes its mind (a lump appears in the data).
+own process (palpd learner). Each reading updates the free-form GP map (an
+O(n·G) update; its kernel is relearned in one block while that is cheap), then
+the hypotheses are refitted and weighed (hypotheses.py), and what is reported,
+where to probe next and when to stop all follow from the chosen one
+(decision.py).
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from scipy.special import ndtr
 
-from palpd.estimate import LumpEstimate
-from palpd.learner import acquisition
+from palpd.learner import acquisition, lumps as free_form, maps
+from palpd.learner.decision import Decision
 from palpd.learner.gp import Hyper, IncrementalGP, fit_hyper
-from palpd.learner.lumps import Map, find_lumps
-from palpd.learner.threshold import Levels, levels, lump_points, supervised_levels, tau_field
+from palpd.learner.hypotheses import Hypotheses
+from palpd.learner.observations import EXACT, Observations
+from palpd.learner.threshold import free_form_levels, lump_points, supervised_levels, tau_field
 
-EARLY_REFIT_POINTS = 20  # below this a refit costs next to nothing and the kernel still moves a lot
+REFIT_FLOPS = 5.5e7  # a one-block refit costs n²·G; beyond this (60 readings on 121²) the kernel is kept: no spikes
+HYPER_POINTS = 60  # the kernel is learned from at most this many readings, evenly spread over the arrival order
+CENSORED_SD = 0.25  # log sd the free-form map gives a bound, read as a reading at the bound
+FULL_UPDATE_POINTS = 60  # every hypothesis refitted every update up to this many readings
+LIGHT_STARTS = 2  # beyond, a refit tries at most this many starts...
+REFITS_PER_DOUBLING = 30  # ...and there are this many refits while the readings double (one every n/30 readings)
 
 
-class Learner:
+class Learner(Decision):
     def __init__(self, size_mm: tuple[float, float], settings, min_contrast: float = 0.3, seed: int = 0,
                  travel_mm_per_palpation: float = 100.0, supervised_tau_n_per_mm: float | None = None) -> None:
         self.settings = settings
+        self.size_mm = (float(size_mm[0]), float(size_mm[1]))
         self.supervised_tau_n_per_mm = supervised_tau_n_per_mm  # None: τ from the data (unsupervised)
         self.min_contrast = min_contrast
         self.travel_mm_per_palpation = travel_mm_per_palpation
@@ -36,55 +43,107 @@ class Learner:
         self.grid_xy = np.column_stack([gx.ravel(), gy.ravel()])
         self.cell_area_mm2 = float((self.xs[1] - self.xs[0]) * (self.ys[1] - self.ys[0]))
         low, high = settings.length_scale_mm
-        self.gp = IncrementalGP(self.grid_xy, Hyper(0.0, 1.0, math.sqrt(low * high), 1e-6))
+        self.noise_floor = settings.reading_noise_floor
+        self.gp = IncrementalGP(self.grid_xy, Hyper(0.0, 1.0, math.sqrt(low * high), self.noise_floor**2,
+                                                    scale_mm=0.5 * max(size_mm)))
+        self.obs = Observations()
+        self.hypotheses = Hypotheses(size_mm, min_contrast, self.noise_floor)
         self.design = acquisition.initial_design(size_mm, settings.initial_points, seed)
         self.blocked = np.zeros(len(self.grid_xy), dtype=bool)
         self.probed: list[tuple[float, float]] = []
-        self.levels: Levels | None = None
+        self.choice = None
         self._fitted_at = 0
-        self._tau = self._p = None
+        self._pass = None  # the pass of refits under way (many readings: one step per update)
+        self._regions = []
+        self._cache: dict = {}
 
     # -- learning -------------------------------------------------------------------------------
-    def observe(self, xy_mm, stiffness_n_per_mm: float | None, sd_n_per_mm: float = 0.0) -> None:
-        """One palpation's result; a palpation without a stiffness still counts and blocks its spot."""
+    def observe(self, xy_mm, stiffness_n_per_mm: float | None = None, sd_n_per_mm: float = 0.0, *,
+                outcome: str | None = None, bound_n_per_mm: float | None = None) -> None:
+        """One palpation where it was aimed: a reading (`fit`), a bound (`too_stiff`: k ≥ bound,
+        `too_soft`: k ≤ bound) or nothing (`no_contact`, `rejected`); every palpation counts and
+        blocks its spot. Without an outcome, a usable stiffness is a `fit` and anything else `rejected`."""
         xy = (float(xy_mm[0]), float(xy_mm[1]))
         self.probed.append(xy)
+        self._cache.clear()
         acquisition.block_near(self.blocked, self.grid_xy, xy, self.settings.min_spacing_mm)
-        if stiffness_n_per_mm is None or not math.isfinite(stiffness_n_per_mm) or stiffness_n_per_mm <= 0:
+        if outcome is None:
+            outcome = "fit" if _usable(stiffness_n_per_mm) else "rejected"
+        value = stiffness_n_per_mm if outcome == "fit" else bound_n_per_mm
+        if not self.obs.add(xy, outcome, value, sd_n_per_mm if outcome == "fit" else 0.0):
             return
-        sd = sd_n_per_mm if math.isfinite(sd_n_per_mm) and sd_n_per_mm > 0 else 0.0
-        self.gp.add(xy, stiffness_n_per_mm, sd * sd)
-        new_levels = self._levels()
-        if self._refit_pays(new_levels):
-            self._refit(new_levels)
-        self.levels = new_levels
-        self._update_map()
+        own_sd = self.obs.sd[-1] if self.obs.kind[-1] == EXACT else CENSORED_SD
+        self.gp.add(xy, self.obs.y[-1], own_sd**2)
+        if self._refit_pays():
+            self._refit()
+        self._weigh()
 
-    def _levels(self) -> Levels:
-        if self.supervised_tau_n_per_mm is None:
-            return levels(self.gp.y, self.min_contrast)
-        return supervised_levels(self.gp.y, np.sqrt(self.gp.noise_var), self.supervised_tau_n_per_mm)
-
-    def _refit_pays(self, new: Levels) -> bool:
+    def _refit_pays(self) -> bool:
         n = self.gp.n
-        return (n <= EARLY_REFIT_POINTS or n >= self.settings.refit_growth * self._fitted_at
-                or self.levels is None or new.contrast != self.levels.contrast)
+        due = n >= self.settings.refit_growth * self._fitted_at
+        return n >= 3 and due and n * n * len(self.grid_xy) <= REFIT_FLOPS
 
-    def _refit(self, lv: Levels) -> None:
+    def _refit(self) -> None:
         gp = self.gp
-        floor = max(lv.tau_n_per_mm - lv.tissue_n_per_mm, 1e-6)
-        hyper = fit_hyper(gp.xy, gp.y, gp.noise_var, lv.tissue_n_per_mm, gp.hyper,
-                          self.settings.length_scale_mm, floor) if gp.n >= 3 else \
-            Hyper(lv.tissue_n_per_mm, floor**2, gp.hyper.length_mm, 1e-6 * floor**2)
+        keep = np.unique(np.linspace(0, gp.n - 1, min(gp.n, HYPER_POINTS)).astype(int))
+        start = Hyper(float(np.log(self._levels().tissue_n_per_mm)), *_rest(gp.hyper))
+        hyper = fit_hyper(gp.xy[keep], gp.y[keep], gp.noise_var[keep], start, self.settings.length_scale_mm,
+                          self.noise_floor**2)
         gp.refit(hyper)
         self._fitted_at = gp.n
 
-    def _update_map(self) -> None:
+    def _levels(self):
+        k = np.exp(self.obs.y[self.obs.exact]) if self.obs.exact.any() else np.exp(self.obs.y)
+        if self.supervised_tau_n_per_mm is None:
+            return free_form_levels(k, self.min_contrast)
+        return supervised_levels(k, self.supervised_tau_n_per_mm)
+
+    def _weigh(self) -> None:
+        """Refit and weigh the hypotheses: a whole pass (hypotheses.refits) every update while readings
+        are few; beyond FULL_UPDATE_POINTS every hypothesis assimilates each new reading (a Kalman step)
+        and the pass goes on one refit every n/REFITS_PER_DOUBLING readings, from at most LIGHT_STARTS
+        starts: bounded work per update, the fits still revisited as often as the data double."""
+        n = self.obs.n
+        if n <= FULL_UPDATE_POINTS or self.choice is None:
+            self.hypotheses.update(self.obs, self._find_regions(), self._tissue_log())
+            self._pass = None
+        else:
+            self.hypotheses.assimilate(self.obs)
+            if n % max(1, n // REFITS_PER_DOUBLING) == 0 and next(self._pass or iter(()), None) is None:
+                self._pass = self.hypotheses.refits(self.obs, self._find_regions(), self._tissue_log(), LIGHT_STARTS)
+                next(self._pass)
+        self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None)
+
+    def _tissue_log(self) -> float:
+        return math.log(self._levels().tissue_n_per_mm)
+
+    def _find_regions(self) -> list:
+        """The free-form map's regions backed by a stiff reading: starts for the parametric fits."""
+        lv = self._levels()
+        exact = self.obs.exact
+        k = np.exp(self.obs.y[exact])
+        stiff = lump_points(k, k * self.obs.sd[exact], lv)
+        self._regions = free_form.regions_of(self.free_form_map(lv), self.obs.xy[exact][stiff], k[stiff],
+                                             lv.tissue_n_per_mm)
+        return self._regions
+
+    def _free_form_evidence(self) -> float:
+        """log evidence of the free-form map: its marginal likelihood, less BIC's price of its two kernel parameters."""
+        return self.gp.log_marginal_likelihood() - math.log(max(self.gp.n, 2))
+
+    def free_form_map(self, lv=None) -> free_form.Map:
+        """The GP map in N/mm with each region's τ (what the free-form hypothesis reports from)."""
+        if "map" in self._cache:
+            return self._cache["map"]
+        lv = lv or self._levels()
         shape = (len(self.ys), len(self.xs))
-        mean = self.gp.mean.reshape(shape)
+        mean = np.exp(self.gp.mean).reshape(shape)
         reach_cells = 2.0 * self.gp.hyper.length_mm / (self.xs[1] - self.xs[0])
-        self._tau = tau_field(mean, self.levels, reach_cells, self._cells_of(self.gp.xy), self.gp.y).ravel()
-        self._p = ndtr((self.gp.mean - self._tau) / self.gp.std())
+        exact = self.obs.exact
+        tau = tau_field(mean, lv, reach_cells, self._cells_of(self.obs.xy[exact]), np.exp(self.obs.y[exact]))
+        self._cache["map"] = free_form.Map(self.xs, self.ys, mean, mean * self.gp.std().reshape(shape), tau,
+                                           self.gp.hyper.length_mm)
+        return self._cache["map"]
 
     def _cells_of(self, xy: np.ndarray) -> np.ndarray:
         """(row, col) of the grid cell nearest each point."""
@@ -93,46 +152,44 @@ class Learner:
         rows = np.clip(np.rint((xy[:, 1] - self.ys[0]) / step_y).astype(int), 0, len(self.ys) - 1)
         return np.column_stack([rows, cols])
 
-    # -- answers --------------------------------------------------------------------------------
+    # -- the map --------------------------------------------------------------------------------
     @property
     def points(self) -> int:
         return len(self.probed)
 
+    def posterior_grid(self) -> maps.PosteriorGrid | None:
+        """The chosen hypothesis's map over the grid (xs, ys, mean, sd, P(lump)); None before a reading."""
+        if self.choice is None:
+            return None
+        if "grid" not in self._cache:
+            fit = self.hypotheses.fits.get(self.choice.chosen)
+            if fit is not None and fit.family.k:
+                self._cache["grid"] = maps.parametric(fit, self.xs, self.ys, self.grid_xy)
+            else:
+                tau = np.log(self.free_form_map().tau).ravel()
+                self._cache["grid"] = maps.from_log_field(self.xs, self.ys, self.gp.mean, self.gp.var, tau)
+        return self._cache["grid"]
+
     def p_lump(self) -> np.ndarray | None:
-        """P(lump) on the grid, shape (len(ys), len(xs)); None before the first stiffness."""
-        return None if self._p is None else self._p.reshape(len(self.ys), len(self.xs))
+        """P(lump) on the grid, shape (len(ys), len(xs)); None before the first reading."""
+        grid = self.posterior_grid()
+        return None if grid is None else grid.p_lump
 
     def ambiguous_area_mm2(self) -> float | None:
-        if self._p is None:
+        p = self.p_lump()
+        if p is None:
             return None
         c = self.settings.confidence
-        return float(np.count_nonzero((self._p > 1.0 - c) & (self._p < c))) * self.cell_area_mm2
-
-    def next_probe(self, max_palpations: int | None = None) -> tuple[float, float] | None:
-        """Where to palpate next, or None when the map is sure enough (or the budget is spent)."""
-        budget = self.settings.max_palpations if max_palpations is None else max_palpations
-        if self.points >= budget:
-            return None
-        if self.points < len(self.design):
-            return self.design[self.points]
-        if self._p is None or self._sure_enough():
-            return None
-        score = acquisition.straddle(self.gp.mean, self.gp.std(), self._tau, self.settings.confidence)
-        here = self.probed[-1] if self.probed else None
-        return acquisition.best_candidate(score, self.grid_xy, self.blocked, here, self.travel_mm_per_palpation)
+        return float(np.count_nonzero((p > 1.0 - c) & (p < c))) * self.cell_area_mm2
 
     @property
     def grid_area_mm2(self) -> float:
         return self.cell_area_mm2 * len(self.grid_xy)
 
-    def _sure_enough(self) -> bool:
-        return self.ambiguous_area_mm2() <= self.settings.max_ambiguous_fraction * self.grid_area_mm2
 
-    def lumps(self) -> list[LumpEstimate]:
-        if self.levels is None or not self.levels.contrast:
-            return []
-        shape = (len(self.ys), len(self.xs))
-        grid_map = Map(self.xs, self.ys, self.gp.mean.reshape(shape), self.gp.std().reshape(shape),
-                       self._tau.reshape(shape), self.gp.hyper.length_mm)
-        stiff = lump_points(self.gp.y, np.sqrt(self.gp.noise_var), self.levels)
-        return find_lumps(grid_map, self.gp.xy[stiff])
+def _rest(hyper: Hyper) -> tuple:
+    return hyper.signal_var, hyper.length_mm, hyper.white_var, hyper.level_var, hyper.slope_var, hyper.scale_mm
+
+
+def _usable(value) -> bool:
+    return value is not None and math.isfinite(value) and value > 0

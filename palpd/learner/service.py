@@ -68,7 +68,8 @@ class LearnerService:
         self.seq += 1
         return Estimate(seq=self.seq, t=time.time() if t is None else t, points=self.learner.points,
                         lumps=[LumpMsg(**lump.as_dict()) for lump in self.learner.lumps()],
-                        next_probe_mm=nxt, done=nxt is None, ambiguous_area_mm2=self.learner.ambiguous_area_mm2())
+                        next_probe_mm=nxt, done=nxt is None, ambiguous_area_mm2=self.learner.ambiguous_area_mm2(),
+                        model=self.learner.model())
 
     def _publish(self, estimate: Estimate) -> None:
         self.pub.send_multipart([b"estimate", estimate.model_dump_json().encode()])

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import brentq
 
-from palpd.dataset import read_dataset
+from palpd.datafile import read_dataset
 from palpd.errors import ConfigError
 
 def supervised_tau(path: str) -> float:

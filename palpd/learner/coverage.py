@@ -1,0 +1,96 @@
+"""When a parametric lump is pinned down by readings, not only by its model.
+
+A few readings near one side of a lump can fit a circle (or two lumps side by
+side can fit one) to a fraction of a millimetre in the Laplace approximation
+while the rest of it is unexplored: the posterior is then many circles, not the
+one Gaussian the approximation draws. A lump counts as pinned only when it has
+been felt from inside (a reading within CONFIRM_RHO of its centre, in units of
+its boundary, or within the probe spacing of a lump smaller than that) and its
+edge band (where its profile is between 10 % and 90 % of its height, widened by
+the probe spacing) holds readings on every side: no gap of a third of a turn or
+more between them, around its own axes; the part of the edge outside the
+palpable area needs none. These say where to probe first.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from palpd.learner import shapes
+
+CONFIRM_RHO = 0.6
+EDGE_LEVEL = math.log(9.0)  # the edge band: where the lump's profile is between 10 % and 90 % of its height
+MAX_GAP_RAD = 2.0 * math.pi / 3.0  # no third of a turn of edge unread
+OUTSIDE_STEPS = 36
+
+
+def unconfirmed_centre(fit, readings_xy: np.ndarray, spacing_mm: float) -> np.ndarray | None:
+    """The centre of the first lump no reading has felt from inside, or None."""
+    for params in _lumps(fit):
+        lr2, _ = shapes.log_rho2(params, readings_xy, fit.family.kind == "ellipses")
+        reach = max(CONFIRM_RHO, spacing_mm / math.exp(params[2]))
+        if not np.any(lr2 <= 2.0 * math.log(reach)):
+            return params[:2]
+    return None
+
+
+def uncovered_edge(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float) -> np.ndarray | None:
+    """The boundary point in the middle of the first lump's widest unread stretch of edge, or None."""
+    half = np.asarray(size_mm, dtype=float) / 2.0
+    for params in _lumps(fit):
+        ellipse = fit.family.kind == "ellipses"
+        lr2, _ = shapes.log_rho2(params, readings_xy, ellipse)
+        widen = spacing_mm / math.exp(params[2])
+        inner = shapes.rho_at(params, -EDGE_LEVEL) - widen
+        outer = shapes.rho_at(params, EDGE_LEVEL) + widen
+        band = (lr2 >= 2.0 * math.log(max(inner, 1e-3))) & (lr2 <= 2.0 * math.log(outer))
+        steps = 2.0 * math.pi * np.arange(OUTSIDE_STEPS) / OUTSIDE_STEPS
+        outside = steps[np.any(np.abs(_boundary_point(params, ellipse, steps)) > half, axis=1)]
+        phases = np.sort(np.concatenate([_phase(params, readings_xy[band], ellipse), outside]))
+        if phases.size == 0:
+            return _boundary_point(params, ellipse, 0.0)
+        gaps = np.diff(np.concatenate([phases, [phases[0] + 2.0 * math.pi]]))
+        widest = int(np.argmax(gaps))
+        if gaps[widest] >= MAX_GAP_RAD:
+            return _boundary_point(params, ellipse, phases[widest] + 0.5 * gaps[widest])
+    return None
+
+
+def _lumps(fit) -> list[np.ndarray]:
+    return [fit.theta[fit.family.lump_slice(j)] for j in range(fit.family.k)]
+
+
+def _frame(params: np.ndarray, ellipse: bool) -> tuple[float, float, float]:
+    major, minor, angle_deg = shapes.axes_and_angle(params, ellipse)
+    return major, minor, math.radians(angle_deg)
+
+
+def _phase(params: np.ndarray, xy: np.ndarray, ellipse: bool) -> np.ndarray:
+    """Each point's angle around the lump in its own (ellipse-normalised) frame, in [0, 2π)."""
+    major, minor, angle = _frame(params, ellipse)
+    u = xy - params[:2]
+    along = u[:, 0] * math.cos(angle) + u[:, 1] * math.sin(angle)
+    across = -u[:, 0] * math.sin(angle) + u[:, 1] * math.cos(angle)
+    return np.arctan2(across / minor, along / major) % (2.0 * math.pi)
+
+
+def _boundary_point(params: np.ndarray, ellipse: bool, t) -> np.ndarray:
+    """The boundary point(s) at the ellipse's own angle(s) t: (2,) for a number, (len(t), 2) for an array."""
+    major, minor, angle = _frame(params, ellipse)
+    along, across = major * np.cos(t), minor * np.sin(t)
+    return params[:2] + np.stack([along * math.cos(angle) - across * math.sin(angle),
+                                  along * math.sin(angle) + across * math.cos(angle)], axis=-1)
+
+
+def near_edges(fit, xy: np.ndarray, spacing_mm: float) -> np.ndarray:
+    """Which points lie in some lump's edge band (widened by the spacing): where a reading moves a
+    reported centre or radius, so the only places worth scoring for them."""
+    near = np.zeros(len(xy), dtype=bool)
+    for params in _lumps(fit):
+        lr2, _ = shapes.log_rho2(params, xy, fit.family.kind == "ellipses")
+        widen = 2.0 * spacing_mm / math.exp(params[2])
+        inner = shapes.rho_at(params, -EDGE_LEVEL) - widen
+        outer = shapes.rho_at(params, EDGE_LEVEL) + widen
+        near |= (lr2 >= 2.0 * math.log(max(inner, 1e-3))) & (lr2 <= 2.0 * math.log(outer))
+    return near

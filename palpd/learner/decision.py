@@ -1,0 +1,204 @@
+"""What the learner answers from its chosen hypothesis: the lumps, the verdict, when to stop, where next.
+
+Stop rule, in the user's terms: the chosen hypothesis's weight is at least
+`confidence`, and every reported centre and radius (or axis) has posterior sd
+at most `tolerance_mm` (`none` has nothing to pin down). Never on no evidence:
+with fewer usable readings than the simplest lump model has parameters the
+learner keeps palpating, and a budget spent before the rule holds is the
+verdict `undetermined`, never "no lump".
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from palpd.estimate import LumpEstimate
+from palpd.learner import acquisition, coverage, describe, shapes
+from palpd.learner.evidence import ADEQUATE_NOISE, Fit
+from palpd.learner.lumps import find_lumps
+from palpd.learner.threshold import lump_points, surely_above
+
+MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model's parameter count
+MIN_WEIGHT = 0.01  # hypotheses below this weight are left out of the disagreement
+MAX_RIVALS = 4
+CANDIDATE_STRIDE_MM = 1.0  # probes are chosen on a lattice at least this fine
+COVERAGE_STEP_MM = 2.0  # how finely the unexplored spots are looked for
+
+
+class Decision:
+    """Mixed into Learner: needs choice, hypotheses, obs, gp, settings, grid and probe bookkeeping."""
+
+    def chosen_fit(self) -> Fit | None:
+        return None if self.choice is None else self.hypotheses.fits.get(self.choice.chosen)
+
+    def model(self) -> dict | None:
+        """{chosen, weight, runner_up} of the scan report and the estimate event."""
+        return None if self.choice is None else self.choice.as_dict()
+
+    def lumps(self) -> list[LumpEstimate]:
+        if "lumps" not in self._cache:
+            self._cache["lumps"] = self._lumps()
+        return self._cache["lumps"]
+
+    def _lumps(self) -> list[LumpEstimate]:
+        if self.choice is None or self.choice.chosen == "none":
+            return []
+        fit = self.chosen_fit()
+        if fit is not None:
+            lumps = describe.lumps_of(fit, self.supervised_tau_n_per_mm)
+            return lumps if self.supervised_tau_n_per_mm is None else [l for l in lumps if self._past_tau(l)]
+        exact = self.obs.exact
+        k = np.exp(self.obs.y[exact])
+        lv = self._levels()
+        stiff = lump_points(k, k * self.obs.sd[exact], lv)
+        return find_lumps(self.free_form_map(lv), self.obs.xy[exact][stiff])
+
+    def _past_tau(self, lump: LumpEstimate) -> bool:
+        """Supervised: a lump is one only where a reading inside it is surely above the learned τ."""
+        exact = self.obs.exact
+        k = np.exp(self.obs.y[exact])
+        sure = surely_above(k, k * self.obs.sd[exact], self.supervised_tau_n_per_mm)
+        inside = np.hypot(*(self.obs.xy[exact] - np.asarray(lump.center_mm)).T) <= lump.radius_mm
+        return bool(np.any(sure & inside))
+
+    def decided(self) -> bool:
+        """The stop rule holds: the model choice is confident, no spot of the tissue is unexplored,
+        each lump is pinned down by readings (coverage.py) and what is reported has posterior sd within
+        the tolerance."""
+        if not self._choice_made() or self._unexplored() is not None or self._unpinned() is not None:
+            return False
+        tolerance = self.settings.tolerance_mm
+        return all(_sds(lump) <= tolerance for lump in self.lumps())
+
+    def _unexplored(self) -> tuple[float, float] | None:
+        """The spot farthest from every reading, when it is farther than `coverage_mm`: a lump there
+        whose felt footprint is narrower than that could not have shown in any reading yet."""
+        if self.obs.n == 0:
+            return None
+        from scipy.spatial import cKDTree
+
+        cells = self.grid_xy[self._candidates(COVERAGE_STEP_MM)]
+        distance, _ = cKDTree(self.obs.xy).query(cells)
+        far = int(np.argmax(distance))
+        return tuple(map(float, cells[far])) if distance[far] > self.settings.coverage_mm else None
+
+    def _unpinned(self) -> np.ndarray | None:
+        """Where a lump of the chosen parametric model still needs a reading to be pinned down, or None."""
+        fit = self.chosen_fit()
+        if fit is None or fit.family.k == 0:
+            return None
+        readings = self.obs.xy[self.obs.kind >= 0]  # exact readings and lower bounds
+        spacing = self.settings.min_spacing_mm
+        centre = coverage.unconfirmed_centre(fit, readings, spacing)
+        return centre if centre is not None else coverage.uncovered_edge(fit, readings, self.size_mm, spacing)
+
+    def verdict(self) -> str:
+        """`lumps`, `none`, or `undetermined` when the evidence has not decided between them."""
+        if not self._choice_made():
+            return "undetermined"
+        return "none" if self.choice.chosen == "none" else "lumps"
+
+    def _choice_made(self) -> bool:
+        """Enough readings, a confident choice, and the chosen hypothesis explains them to their precision
+        (a model that needs far more noise than readings have is the best of a bad lot, not an answer)."""
+        if self.choice is None or self.choice.weight < self.settings.confidence or not self._enough_spots():
+            return False
+        return self._adequate()
+
+    def _enough_spots(self) -> bool:
+        """MIN_READINGS readings at distinct spots (at least the probe spacing apart): the same spot
+        read again and again is not evidence about the rest of the tissue."""
+        spots: list = []
+        for xy in self.obs.xy:
+            if all(math.dist(xy, s) >= self.settings.min_spacing_mm for s in spots):
+                spots.append(xy)
+                if len(spots) >= MIN_READINGS:
+                    return True
+        return False
+
+    def _adequate(self) -> bool:
+        return self._chosen_noise_sd() <= ADEQUATE_NOISE * self.noise_floor
+
+    def _chosen_noise_sd(self) -> float:
+        fit = self.chosen_fit()
+        return fit.noise_sd if fit is not None else math.sqrt(self.gp.hyper.white_var)
+
+    # -- where next -------------------------------------------------------------------------------
+    def next_probe(self, max_palpations: int | None = None) -> tuple[float, float] | None:
+        """Where to palpate next, or None once the stop rule holds (or the budget is spent)."""
+        budget = self.settings.max_palpations if max_palpations is None else max_palpations
+        if self.points >= budget:
+            return None
+        if self.points < len(self.design):
+            return self.design[self.points]
+        if self.decided():
+            return None
+        unexplored = self._unexplored() if self._choice_made() else None
+        if unexplored is not None:  # all else is decided: look where nothing was read yet
+            return unexplored
+        cells = self._candidates()
+        score = self._score(cells)
+        here = self.probed[-1] if self.probed else None
+        best = acquisition.best_candidate(score, self.grid_xy[cells], self.blocked[cells], here,
+                                          self.travel_mm_per_palpation)
+        return best if best is not None else self._farthest_from_probes()
+
+    def _candidates(self, stride_mm: float = CANDIDATE_STRIDE_MM) -> np.ndarray:
+        step = max(1, int(stride_mm / (self.xs[1] - self.xs[0])))
+        rows = np.arange(0, len(self.ys), step)
+        cols = np.arange(0, len(self.xs), step)
+        return (rows[:, None] * len(self.xs) + cols[None, :]).ravel()
+
+    def _noise_var(self) -> float:
+        fit = self.chosen_fit()
+        extra = fit.noise_sd if fit is not None else self.noise_floor
+        return float(np.median(self.obs.sd**2)) + extra**2 if self.obs.n else extra**2
+
+    def _score(self, cells: np.ndarray) -> np.ndarray:
+        """What a reading at each cell is worth (see acquisition.py for the why of each)."""
+        xy = self.grid_xy[cells]
+        if self.choice is None:
+            return self.gp.var[cells]
+        if self.choice.weight < self.settings.confidence:
+            return acquisition.disagreement(self._predictions(cells), self._noise_var())
+        fit = self.chosen_fit()
+        if not self._adequate():  # the chosen one misses something: where the free-form map disagrees with it
+            return acquisition.disagreement([(0.5, *self._prediction(self.choice.chosen, cells)),
+                                             (0.5, self.gp.mean[cells], self.gp.var[cells])], self._noise_var())
+        if fit is not None and fit.family.k:
+            target = self._unpinned()
+            if target is not None:  # nearest the spot that pins the lump down
+                return 1.0 / (1.0 + np.hypot(xy[:, 0] - target[0], xy[:, 1] - target[1]))
+            score = np.zeros(len(xy))
+            near = coverage.near_edges(fit, xy, self.settings.min_spacing_mm)  # where a centre or radius is read
+            score[near] = acquisition.boundary_gain(fit, xy[near], self._noise_var())
+            return score
+        tau = np.log(self.free_form_map().tau).ravel()[cells]
+        return acquisition.straddle(self.gp.mean[cells], self.gp.std()[cells], tau, self.settings.confidence)
+
+    def _prediction(self, name: str, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        fit = self.hypotheses.fits.get(name)
+        if fit is None:
+            return self.gp.mean[cells], self.gp.var[cells]
+        mean, var, _ = acquisition.moments(fit, self.grid_xy[cells])
+        return mean, var
+
+    def _predictions(self, cells: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
+        rivals = sorted(self.choice.weights.items(), key=lambda kv: -kv[1])[:MAX_RIVALS]
+        return [(weight, *self._prediction(name, cells)) for name, weight in rivals if weight >= MIN_WEIGHT]
+
+    def _farthest_from_probes(self) -> tuple[float, float] | None:
+        free = ~self.blocked
+        if not free.any():
+            return None
+        probes = np.asarray(self.probed)
+        cells = self.grid_xy[free]
+        distance = np.min(np.hypot(cells[:, None, 0] - probes[None, :, 0], cells[:, None, 1] - probes[None, :, 1]), 1)
+        best = cells[int(np.argmax(distance))]
+        return float(best[0]), float(best[1])
+
+
+def _sds(lump: LumpEstimate) -> float:
+    sds = [lump.center_sd_mm, lump.radius_sd_mm, *(lump.axes_sd_mm or ())]
+    return max(sds)

@@ -1,0 +1,223 @@
+"""One hypothesis fitted to the readings, and its evidence (Laplace approximation of the marginal likelihood).
+
+The priors are stated, proper and the same for every scene: a lump's centre
+anywhere on the tissue (its disc may reach past it), its radius log-uniform from 0.5 mm
+to half the tissue's longer side (most of it), its edge sharpness log-uniform, its tail shape uniform
+(power-law to Gaussian, shapes.py), its contrast log-uniform
+from `min_contrast` (the softest difference that counts as a lump) to 1000×,
+an ellipse's log axis ratio up to log 8. The evidence is
+
+    log Z = log L(θ̂) + log p(θ̂) + ½·d·log 2π − ½·log det H + log k!
+
+with H the Gauss–Newton curvature of −log posterior (a uniform prior adds the
+curvature of its own spread, so a parameter the data leave free costs what its
+prior volume says, never an infinite bonus), and k! for the k interchangeable
+lumps. A parameter the data pin down costs log(prior width / posterior width):
+the simplest model wins unless the data clearly ask for more.
+
+A lump must also be felt: removing it must change the prediction at some exact
+reading by at least SUPPORT_SIGMA of that reading's noise (at the noise floor). A fit that needs an
+unfelt lump is not a hypothesis the data support (it is the simpler one with an
+invisible extra), and is left out.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from palpd.learner import shapes
+from palpd.learner.priors import LEVEL_SD, SLOPE_SD, Priors  # noqa: F401  (Priors: part of this API)
+from palpd.learner.likelihood import log_likelihood, noise_sd_ml, residuals
+from palpd.learner.solver import levenberg_marquardt
+from palpd.learner.observations import EXACT, Observations
+
+SUPPORT_SIGMA = 3.0
+ADEQUATE_NOISE = 2.0  # σ_w beyond this multiple of the floor: the model misses something (decision.py)
+OVERLAP_MM = 0.25  # softness of the rule that lumps do not sit inside one another
+HOPELESS = 30.0  # nats: a start this far below the best one's height is dropped (after GIVE_UP_AFTER steps)
+GIVE_UP_AFTER = 8
+CALL_OVERHEAD = 1000  # an evaluation's fixed cost, in residual entries (Python and numpy call overhead)
+COST_TOLERANCE = 1e-4  # nats: a fit is done when a step gains less (evidences differ by whole nats)
+
+
+@dataclass
+class Fit:
+    family: shapes.Family
+    theta: np.ndarray
+    cov: np.ndarray
+    noise_sd: float
+    log_posterior: float
+    log_evidence: float
+    supported: bool
+    n: int  # readings when fitted
+    log_det: float  # log det of the curvature then
+    work: int = 0  # what the fit cost, in evaluated residual entries (deterministic, unlike a clock)
+
+    @property
+    def name(self) -> str:
+        return self.family.name
+
+
+def prior_residuals(family: shapes.Family, theta: np.ndarray, priors: Priors) -> tuple[np.ndarray, np.ndarray]:
+    """The background's Gaussian prior and the no-lump-inside-another rule, as residuals with their Jacobian."""
+    values = np.array([(theta[0] - priors.level) / LEVEL_SD, theta[1] / SLOPE_SD, theta[2] / SLOPE_SD])
+    rows = np.zeros((3, family.size))
+    rows[[0, 1, 2], [0, 1, 2]] = 1.0 / np.array([LEVEL_SD, SLOPE_SD, SLOPE_SD])
+    if family.k < 2:
+        return values, rows
+    overlap, overlap_rows = _overlaps(family, theta)
+    return np.concatenate([values, overlap]), np.vstack([rows, overlap_rows])
+
+
+def _overlaps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far each pair of lumps' centres sit inside half their summed radii (0 when apart), in OVERLAP_MM."""
+    lumps = shapes.lumps_of(family, theta)
+    j, m = np.triu_indices(family.k, 1)
+    dx, dy = lumps[j, 0] - lumps[m, 0], lumps[j, 1] - lumps[m, 1]
+    d = np.hypot(dx, dy) + 1e-9
+    ra, rb = np.exp(lumps[j, 2]), np.exp(lumps[m, 2])
+    excess = 0.5 * (ra + rb) - d
+    inside = excess > 0
+    rows = np.zeros((len(j), family.k, family.per_lump))
+    pair = np.arange(len(j))
+    for index, lump, sign in ((j, 0, 1.0), (m, 1, -1.0)):
+        rows[pair, index, 0] = -sign * dx / d
+        rows[pair, index, 1] = -sign * dy / d
+        rows[pair, index, 2] = 0.5 * (ra if lump == 0 else rb)
+    rows = np.hstack([np.zeros((len(j), 3)), rows.reshape(len(j), -1)]) * inside[:, None]
+    return np.where(inside, excess, 0.0) / OVERLAP_MM, rows / OVERLAP_MM
+
+
+def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[np.ndarray],
+        noise_floor: float, noise_sd: float | None = None, max_iter: int = 60) -> Fit | None:
+    """The mode of the most evidence among those `starts` lead to, with σ_w re-estimated.
+
+    Modes are compared by evidence, not by height: two configurations can fit the readings
+    equally well while one is a narrow coincidence of parameters and the other is what the
+    readings say whatever the details, and the second holds far more posterior mass."""
+    lo, hi = priors.bounds(family)
+    noise = max(noise_sd or noise_floor, noise_floor)
+    best, lowest, calls = None, np.inf, 0
+    for start in starts:
+        theta, cost, used = _solve(family, obs, priors, _inside(start, lo, hi), lo, hi, noise,
+                                   (GIVE_UP_AFTER, lowest + HOPELESS), max_iter)
+        lowest, calls = min(lowest, cost), calls + used
+        if cost > lowest + HOPELESS:
+            continue
+        mode = _evidence(family, theta, obs, priors, noise, noise_floor)
+        if best is None or mode.log_evidence > best.log_evidence:
+            best = mode
+    if best is None:
+        return None
+    theta = best.theta
+    for _ in range(2):  # σ_w from the residuals, then the fit again at that σ_w
+        f, _ = shapes.evaluate(family, theta, obs.xy, jacobian=False)
+        exact = obs.exact
+        new = noise_sd_ml(obs.y[exact] - f[exact], obs.sd[exact], noise_floor)
+        if abs(math.log(new / noise)) < 0.05:
+            break
+        noise = new
+        theta, _, used = _solve(family, obs, priors, theta, lo, hi, noise, max_iter=max_iter)
+        calls += used
+    return replace(_evidence(family, theta, obs, priors, noise, noise_floor),
+                   work=calls * (CALL_OVERHEAD + obs.n * family.size))
+
+
+def _inside(theta: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    return np.clip(theta, lo + 1e-6 * span, hi - 1e-6 * span)
+
+
+def _stacked(family, theta, obs, priors, noise):
+    f, jac = shapes.evaluate(family, theta, obs.xy)
+    r, jr = residuals(f, jac, obs.y, obs.sd, obs.kind, noise)
+    pr, pj = prior_residuals(family, theta, priors)
+    return np.concatenate([r, pr]), np.vstack([jr, pj])
+
+
+def _solve(family, obs, priors, theta0, lo, hi, noise, give_up=None, max_iter: int = 60):
+    return levenberg_marquardt(lambda theta: _stacked(family, theta, obs, priors, noise), theta0, lo, hi,
+                               COST_TOLERANCE, max_iter=max_iter, give_up=give_up)
+
+
+def _log_posterior(family, theta, obs, priors, noise) -> float:
+    f, _ = shapes.evaluate(family, theta, obs.xy, jacobian=False)
+    r, _ = residuals(f, None, obs.y, obs.sd, obs.kind, noise)
+    pr, _ = prior_residuals(family, theta, priors)
+    return (log_likelihood(r, obs.sd, obs.kind, noise) - 0.5 * float(pr @ pr)
+            + priors.log_density(family, theta))
+
+
+def _evidence(family, theta, obs, priors, noise, noise_floor) -> Fit:
+    r, jac = _stacked(family, theta, obs, priors, noise)
+    hessian = jac.T @ jac + np.diag(priors.precision(family))
+    sign, logdet = np.linalg.slogdet(hessian)
+    if sign <= 0:
+        hessian += np.eye(family.size) * 1e-9 * np.trace(hessian)
+        sign, logdet = np.linalg.slogdet(hessian)
+    post = _log_posterior(family, theta, obs, priors, noise) - 0.5 * _gaussian_prior_norm(family)
+    cov = np.linalg.pinv(hessian)
+    return Fit(family, theta, cov, noise, post, _log_z(family, post, logdet),
+               supported(family, theta, obs, noise_floor), obs.n, logdet)
+
+
+def _log_z(family, log_posterior: float, log_det: float) -> float:
+    return log_posterior + 0.5 * family.size * math.log(2.0 * math.pi) - 0.5 * log_det + math.lgamma(family.k + 1)
+
+
+def assimilated(fit: Fit, obs: Observations, priors: Priors) -> Fit:
+    """The fit brought up to all readings by one Kalman step each (the Laplace posterior updated with
+    the reading's linearisation: what a refit would do, for O(d²) a reading), its evidence by each
+    reading's predictive density. A refit now and then corrects what linearising misses."""
+    theta, cov = fit.theta.copy(), fit.cov.copy()
+    log_z, log_det = fit.log_evidence, fit.log_det
+    lo, hi = priors.bounds(fit.family)
+    for i in range(fit.n, obs.n):
+        if obs.kind[i] != EXACT:
+            continue
+        f, jac = shapes.evaluate(fit.family, theta, obs.xy[i:i + 1])
+        g = jac[0]
+        noise_var = obs.sd[i] ** 2 + fit.noise_sd**2
+        spread = cov @ g
+        total = float(g @ spread) + noise_var
+        innovation = obs.y[i] - float(f[0])
+        theta = np.clip(theta + spread * innovation / total, lo, hi)
+        cov -= np.outer(spread, spread) / total
+        log_z -= 0.5 * (innovation**2 / total + math.log(2.0 * math.pi * total))
+        log_det += math.log(total / noise_var)
+    return replace(fit, theta=theta, cov=cov, log_evidence=log_z, log_det=log_det, n=obs.n)
+
+
+def refreshed(fit: Fit, obs: Observations, priors: Priors) -> Fit:
+    """The evidence of a fit at its parameters on all readings so far, without refitting: the height
+    on the new readings, the curvature grown as it does (∝ readings) since the fit."""
+    family = fit.family
+    post = _log_posterior(family, fit.theta, obs, priors, fit.noise_sd) - 0.5 * _gaussian_prior_norm(family)
+    log_det = fit.log_det + family.size * math.log(obs.n / max(fit.n, 1))
+    return replace(fit, log_posterior=post, log_evidence=_log_z(family, post, log_det))
+
+
+def _gaussian_prior_norm(family) -> float:
+    """2·Σ log(σ√(2π)) of the background's Gaussian priors (their normalising constants)."""
+    return 2.0 * (math.log(LEVEL_SD) + 2.0 * math.log(SLOPE_SD) + 1.5 * math.log(2.0 * math.pi))
+
+
+def supported(family: shapes.Family, theta: np.ndarray, obs: Observations, noise: float) -> bool:
+    """Every lump is felt at some exact reading: it is the lump felt most there, and taking it away
+    changes the prediction by SUPPORT_SIGMA of that reading's noise at the floor (`noise`; not the
+    fit's own σ_w, which an unexplained lump elsewhere inflates)."""
+    if family.k == 0:
+        return True
+    exact = obs.exact
+    heights = shapes.heights_of(family, theta, obs.xy)[exact]
+    total = np.sqrt(obs.sd[exact] ** 2 + noise**2)
+    top = np.log1p(heights.max(axis=1))
+    felt = np.argmax(heights, axis=1)
+    for j in range(family.k):
+        others = np.delete(heights, j, axis=1)
+        without = np.log1p(others.max(axis=1)) if others.shape[1] else np.zeros(len(top))
+        if not np.any(((top - without) >= SUPPORT_SIGMA * total) & (felt == j)):
+            return False
+    return True

@@ -1,0 +1,259 @@
+"""The hypotheses about a scene and their posterior weights: none, k circles, k ellipses, free-form.
+
+Each update refits the parametric hypotheses from several starts: where it was
+last time (warm), from the one with one lump fewer plus a lump at the reading
+it explains worst, from the free-form map's regions, and (for ellipses) from
+the circles stretched along each region's long axis. Counts grow while the
+evidence still rises (one beyond the best is always tried). The free-form GP
+level set is a candidate when its map holds a region backed by a stiff reading.
+Weights are the evidences normalised over the supported candidates (equal
+prior odds): the simplest adequate hypothesis wins unless the data ask for more.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from palpd.learner import evidence, shapes
+from palpd.learner.evidence import Fit, Priors
+from palpd.learner.observations import EXACT, Observations
+
+MAX_LUMPS = 6
+RESTART_EVERY = 4
+RESIZE = (0.6, 1.6)
+LIGHT_ITERATIONS = 12  # a refit spread over many readings takes at most this many steps (it starts warm)
+CONTENDER_WEIGHT = 1e-3  # a hypothesis this likely gets fresh starts as soon as a reading surprises it
+START_SHARPNESS = 6.0
+ELLIPSE_START_STRETCH = 0.4  # log axis ratio an ellipse start is given along a region's long axis
+
+
+@dataclass(frozen=True)
+class Region:
+    """A region of the free-form map: a start for parametric fits."""
+    center_mm: tuple[float, float]
+    radius_mm: float          # equal-area radius
+    stretch: tuple[float, float]  # (e1, e2) of its second moments, as in shapes
+    contrast: float           # a = peak / tissue − 1
+
+
+@dataclass
+class Choice:
+    chosen: str
+    weight: float
+    runner_up: str | None
+    weights: dict[str, float]
+
+    def as_dict(self) -> dict:
+        return {"chosen": self.chosen, "weight": round(self.weight, 4), "runner_up": self.runner_up}
+
+
+class Hypotheses:
+    def __init__(self, size_mm, min_contrast: float, noise_floor: float) -> None:
+        self.size_mm = tuple(size_mm)
+        self.min_contrast = min_contrast
+        self.noise_floor = noise_floor
+        self.fits: dict[str, Fit] = {}
+        self.weights: dict[str, float] = {}  # of the last choice: who is worth a fresh look when surprised
+
+    def priors(self, obs: Observations) -> Priors:
+        return Priors(self.size_mm, self.min_contrast, float(np.median(obs.y)))
+
+    def update(self, obs: Observations, regions: list[Region], tissue_log: float) -> None:
+        """Refit every parametric hypothesis worth trying on the readings so far."""
+        for _ in self.refits(obs, regions, tissue_log):
+            pass
+
+    def refits(self, obs: Observations, regions: list[Region], tissue_log: float, max_starts: int | None = None):
+        """A pass over the hypotheses, one refit per step (a generator yielding each step's work, so that
+        a pass can be spread over updates): none; k circles while the last leaves a reading
+        unexplained; ellipses for the best count (and one fewer: an elongated lump can look like two
+        circles)."""
+        priors = self.priors(obs)
+        self.tissue_log = tissue_log
+        seen = ["none"]
+        self.fits["none"] = self._fit(shapes.Family("circles", 0, priors.scale_mm), obs, priors, list, max_starts)
+        yield self.fits["none"].work
+        best_k = 0
+        for k in range(1, MAX_LUMPS + 1):  # one lump more while the last fit leaves a reading unexplained
+            prev = self.fits[self._name_of(k - 1)]
+            if not self._unexplained(prev, obs).any():
+                break
+            family = shapes.Family("circles", k, priors.scale_mm)
+            fit = self._fit(family, obs, priors, lambda: self._circle_starts(prev, obs, regions, k, priors),
+                            max_starts)
+            if fit is None:
+                break
+            self.fits[fit.name] = fit
+            seen.append(fit.name)
+            best = self.fits[self._name_of(best_k)]
+            if fit.supported and fit.log_evidence > best.log_evidence:
+                best_k = k
+            yield fit.work
+        for k in range(max(1, best_k - 1 if best_k <= 2 else best_k), best_k + 1):
+            circles = self.fits.get(f"circles:{k}")
+            if circles is not None and circles.supported:
+                family = shapes.Family("ellipses", k, priors.scale_mm)
+                fit = self._fit(family, obs, priors, lambda: self._ellipse_starts(circles, regions), max_starts)
+                if fit is not None:
+                    self.fits[fit.name] = fit
+                    seen.append(fit.name)
+                yield 0 if fit is None else fit.work
+        self.fits = {name: self.fits[name] for name in seen}
+
+    def assimilate(self, obs: Observations) -> None:
+        """Every hypothesis takes the readings since its fit by a Kalman step each (see evidence.py)."""
+        priors = self.priors(obs)
+        for name, old in list(self.fits.items()):
+            self.fits[name] = evidence.assimilated(old, obs, priors)
+
+    @staticmethod
+    def _name_of(k: int) -> str:
+        return "none" if k == 0 else f"circles:{k}"
+
+    def _fit(self, family, obs, priors, new_starts, max_starts: int | None = None) -> Fit | None:
+        """Refit from where the hypothesis was; from fresh starts too when it is new, when the readings
+        since surprised it, or every RESTART_EVERY readings (a warm start can sit in a poor optimum)."""
+        old = self.fits.get(family.name)
+        starts = [] if old is None else [old.theta]
+        contender = self.weights.get(family.name, 0.0) >= CONTENDER_WEIGHT
+        if old is None or obs.n % RESTART_EVERY == 0 or (contender and self._surprised(old, obs)):
+            starts += new_starts() + ([] if old is None or not contender else _resized(old))
+        starts = starts[:max_starts]
+        iterations = LIGHT_ITERATIONS if max_starts is not None else 60
+        if family.k == 0:
+            starts = [np.array([priors.level, 0.0, 0.0])] + starts
+        if not starts:
+            return None
+        return evidence.fit(family, obs, priors, starts, self.noise_floor, None if old is None else old.noise_sd,
+                            iterations)
+
+    def _surprised(self, old: Fit, obs: Observations) -> bool:
+        f, _ = shapes.evaluate(old.family, old.theta, obs.xy[old.n:], jacobian=False)
+        total = np.sqrt(obs.sd[old.n:] ** 2 + max(old.noise_sd, self.noise_floor) ** 2)
+        return bool(np.any(np.abs(obs.y[old.n:] - f) > evidence.SUPPORT_SIGMA * total))
+
+    # -- starts -----------------------------------------------------------------------------------
+    def _circle_starts(self, fewer: Fit, obs, regions, k, priors) -> list[np.ndarray]:
+        base = np.array([self.tissue_log, 0.0, 0.0])
+        starts = [np.concatenate([fewer.theta if k > 1 else base, lump]) for lump in self._new_lumps(fewer, obs)]
+        clustered = self._stiff_clusters(obs, k)
+        if clustered:
+            starts += [np.concatenate([base, *lumps]) for lumps in clustered]
+        if len(regions) >= k:
+            lumps = [_region_lump(r, ellipse=False) for r in sorted(regions, key=lambda r: -r.radius_mm)[:k]]
+            starts.append(np.concatenate([base, *lumps]))
+        return starts
+
+    def _stiff_clusters(self, obs: Observations, k: int) -> list[list[np.ndarray]]:
+        """k lumps over the readings clearly above the tissue, grouped by k-means: each over its group's
+        centroid, reaching most of the way to the nearest soft reading."""
+        excess = obs.y - self.tissue_log
+        stiff = (excess > math.log1p(self.min_contrast)) & (obs.kind >= 0)
+        if np.count_nonzero(stiff) < k:
+            return []
+        points = obs.xy[stiff]
+        labels = _kmeans(points, k)
+        lumps = []
+        for j in range(k):
+            group = points[labels == j]
+            if len(group) == 0:
+                return []
+            centre = group.mean(axis=0)
+            inner = float(np.max(np.hypot(*(group - centre).T)))
+            outer = _nearest(centre, obs.xy[~stiff]) if (~stiff).any() else inner + 0.25 * max(self.size_mm)
+            contrast = max(math.expm1(float(np.median(excess[stiff][labels == j]))), self.min_contrast * 1.2)
+            lumps.append((centre, max(0.5 * (inner + outer), inner, 0.6), contrast))
+        return [[shapes.make_lump(c, 0.85 * r, START_SHARPNESS, a) for c, r, a in lumps]]
+
+    def _excess(self, fit: Fit, obs: Observations) -> tuple[np.ndarray, np.ndarray]:
+        """Each exact reading above the fit, in units of its noise at the floor (the fit's own σ_w may
+        have swallowed a lump), and the fit's prediction."""
+        f, _ = shapes.evaluate(fit.family, fit.theta, obs.xy, jacobian=False)
+        total = np.sqrt(obs.sd**2 + self.noise_floor**2)
+        return np.where(obs.kind == EXACT, (obs.y - f) / total, 0.0), f
+
+    def _unexplained(self, fit: Fit, obs: Observations) -> np.ndarray:
+        return self._excess(fit, obs)[0] > evidence.SUPPORT_SIGMA
+
+    def _new_lumps(self, fit: Fit, obs: Observations) -> list[np.ndarray]:
+        """A lump at each of the two readings the fit explains worst, reaching most of the way to the
+        nearest reading it does explain."""
+        excess, f = self._excess(fit, obs)
+        explained = np.abs(excess) < evidence.SUPPORT_SIGMA
+        lumps, used = [], []
+        for i in np.argsort(-excess)[:4]:
+            if excess[i] <= evidence.SUPPORT_SIGMA or any(math.dist(obs.xy[i], u) < 3.0 for u in used):
+                continue
+            used.append(obs.xy[i])
+            reach = _nearest(obs.xy[i], obs.xy[explained]) if explained.any() else 0.25 * max(self.size_mm)
+            contrast = max(math.expm1(obs.y[i] - f[i]), self.min_contrast * 1.2)
+            lumps.append(shapes.make_lump(obs.xy[i], max(0.7 * reach, 0.6), START_SHARPNESS, contrast))
+            if len(used) == 2:
+                break
+        return lumps
+
+    def _ellipse_starts(self, circles: Fit, regions: list[Region]) -> list[np.ndarray]:
+        """The circles as they are and stretched like the free-form regions; for one lump, also along x and y."""
+        k, theta = circles.family.k, circles.theta
+        lumps = [theta[circles.family.lump_slice(j)] for j in range(k)]
+        stretches = [[(0.0, 0.0)] * k]
+        if regions:
+            stretches.append([min(regions, key=lambda r: math.dist(r.center_mm, l[:2])).stretch for l in lumps])
+        if k == 1:
+            stretches += [[(ELLIPSE_START_STRETCH, 0.0)], [(-ELLIPSE_START_STRETCH, 0.0)]]
+        starts = [np.concatenate([theta[:3], *[_stretched(l, st) for l, st in zip(lumps, stretch)]])
+                  for stretch in stretches]
+        if len(regions) == k:
+            starts.append(np.concatenate([theta[:3], *[_region_lump(r, ellipse=True) for r in regions]]))
+        return starts
+
+    # -- the choice -------------------------------------------------------------------------------
+    def choice(self, free_form_log_evidence: float | None) -> Choice:
+        """Posterior weights of the supported hypotheses (and the free-form map's, when it has a region)."""
+        candidates = {name: fit.log_evidence for name, fit in self.fits.items() if fit.supported}
+        if free_form_log_evidence is not None:
+            candidates["free-form"] = free_form_log_evidence
+        names = sorted(candidates, key=lambda m: -candidates[m])
+        top = candidates[names[0]]
+        raw = {m: math.exp(candidates[m] - top) for m in names}
+        total = sum(raw.values())
+        weights = {m: v / total for m, v in raw.items()}
+        self.weights = weights
+        return Choice(names[0], weights[names[0]], names[1] if len(names) > 1 else None, weights)
+
+
+def _kmeans(points: np.ndarray, k: int) -> np.ndarray:
+    """Labels of k groups (k-means++, seeded: the same readings always group the same way)."""
+    if k == 1:
+        return np.zeros(len(points), dtype=int)
+    from scipy.cluster.vq import kmeans2
+
+    _, labels = kmeans2(points, k, minit="++", seed=0)
+    return labels
+
+
+def _resized(fit: Fit) -> list[np.ndarray]:
+    """The fit with one lump at a time made smaller or larger: a way out of a mode that grew one lump
+    over two real ones, or shrank one to fit a neighbour's edge."""
+    out = []
+    for j in range(fit.family.k):
+        for factor in RESIZE:
+            theta = fit.theta.copy()
+            theta[fit.family.lump_slice(j).start + 2] += math.log(factor)
+            out.append(theta)
+    return out
+
+
+def _nearest(point: np.ndarray, others: np.ndarray) -> float:
+    return float(np.min(np.hypot(others[:, 0] - point[0], others[:, 1] - point[1])))
+
+
+def _region_lump(region: Region, ellipse: bool) -> np.ndarray:
+    return shapes.make_lump(region.center_mm, max(region.radius_mm, 0.6), START_SHARPNESS,
+                            max(region.contrast, 0.31), region.stretch if ellipse else None)
+
+
+def _stretched(circle: np.ndarray, stretch) -> np.ndarray:
+    return np.concatenate([circle[:3], stretch, circle[3:]])

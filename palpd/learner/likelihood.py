@@ -1,0 +1,67 @@
+"""The likelihood of the readings under a model, as residuals a least-squares solver can minimise.
+
+A reading is y = f(x) + noise, the noise being its own fit uncertainty plus a
+shared extra term σ_w (repeatability, model misfit) that each model estimates
+for itself, never below a floor: a model that leaves structure behind pays for
+it as a larger σ_w. A censored reading (k ≥ B or k ≤ B) contributes
+P(reading beyond B) = Φ(z); as a residual r = √(−2 log Φ(z)), so that ½Σr² is
+still −log L and the same solver handles both.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.special import log_ndtr
+
+from palpd.learner.observations import AT_LEAST, AT_MOST, EXACT
+
+LOG_2PI = math.log(2.0 * math.pi)
+
+
+def residuals(f: np.ndarray, jac: np.ndarray | None, y: np.ndarray, sd: np.ndarray, kind: np.ndarray,
+              noise_sd: float) -> tuple[np.ndarray, np.ndarray | None]:
+    """Residuals (½Σr² = −log L up to the normalising terms) and their Jacobian w.r.t. the parameters."""
+    total = np.sqrt(sd * sd + noise_sd * noise_sd)
+    r = (y - f) / total
+    d_r_df = -1.0 / total
+    censored = kind != EXACT
+    if censored.any():
+        sign = np.where(kind[censored] == AT_LEAST, 1.0, -1.0)
+        z = -sign * r[censored]  # AT_LEAST: (f − B)/σ; AT_MOST: (B − f)/σ
+        rc, drc_dz = _censored_residual(z)
+        r[censored] = rc
+        d_r_df[censored] = drc_dz * sign / total[censored]
+    return r, (None if jac is None else d_r_df[:, None] * jac)
+
+
+def _censored_residual(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    log_phi = log_ndtr(z)
+    r = np.sqrt(np.maximum(-2.0 * log_phi, 0.0))
+    mills = np.exp(-0.5 * z * z - 0.5 * LOG_2PI - log_phi)  # φ(z)/Φ(z)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dr = np.where(r > 1e-9, -mills / r, 0.0)
+    return r, dr
+
+
+def log_likelihood(r: np.ndarray, sd: np.ndarray, kind: np.ndarray, noise_sd: float) -> float:
+    exact = kind == EXACT
+    var = sd[exact] ** 2 + noise_sd**2
+    return float(-0.5 * np.sum(r * r) - 0.5 * np.sum(np.log(var)) - 0.5 * LOG_2PI * np.count_nonzero(exact))
+
+
+def noise_sd_ml(error: np.ndarray, sd: np.ndarray, floor: float) -> float:
+    """Maximum-likelihood σ_w for exact readings with errors `error` and own sds `sd`, at least `floor`."""
+    if error.size == 0:
+        return floor
+    var = max(float(np.mean(error * error - sd * sd)), floor**2)
+    for _ in range(20):  # fixed point of Σ w²(e² − s² − σ²) = 0, w = 1/(s² + σ²)
+        w2 = 1.0 / (sd * sd + var) ** 2
+        new = max(float(np.sum(w2 * (error * error - sd * sd)) / np.sum(w2)), floor**2)
+        if abs(new - var) <= 1e-6 * var:
+            break
+        var = new
+    return math.sqrt(var)
+
+
+__all__ = ["AT_LEAST", "AT_MOST", "EXACT", "log_likelihood", "noise_sd_ml", "residuals"]

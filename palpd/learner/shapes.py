@@ -1,0 +1,231 @@
+"""The parametric lump family: log stiffness of k lumps on a smoothly varying background.
+
+    log k(x) = β0 + βx·x/L + βy·y/L + log(1 + max_j a_j·p_j(x)),
+    p = 1 / (1 + h),   h = (e^{λ·ρ^s} − 1) / (e^λ − 1)   (h = ρ^s at λ = 0)
+
+Each lump j has a centre, a size R (the radius of a circle, the equal-area
+radius of an ellipse), an edge sharpness s, a tail shape λ and a contrast
+a = k_lump/k_tissue − 1. ρ is the distance from the centre in units of R (for
+an ellipse, through the shape matrix exp(−E)/R² with E = [[e1, e2], [e2, −e1]],
+axes R·e^{±|e|/2}), so p = ½ exactly on the lump's boundary: its half-height,
+the felt stiffness halfway between tissue and lump, whatever the edge. Large s
+is a flat top with a sharp edge, small s a wide, gradual rise. p = 1 over the
+centre and ½ at ρ = 1 for every s and λ. λ = 0 is the Hill profile
+1/(1 + ρ^s), whose tails fall off as a power (a hard inclusion felt through
+tissue); λ > 0 makes them fall off as exp(−λ·ρ^s) (s = 2, λ ≈ 0.7 is a
+Gaussian bump): one family for lumps from sharp to gradual, whatever their tails.
+Where lumps come close the stiffer one is felt (the max). Working in log
+stiffness keeps readings comparable from 0.005 to 50 N/mm and turns a relative
+error into a constant one.
+
+Parameters are [β0, βx, βy] then per lump [cx, cy, log R, (e1, e2,) λ, log s, log a].
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+BACKGROUND_PARAMS = 3
+CIRCLE_PARAMS = 6
+ELLIPSE_PARAMS = 8
+TAIL_RANGE = (0.0, 1.5)
+TINY = 1e-12
+
+
+@dataclass(frozen=True)
+class Family:
+    """Which lumps, how many: `circles` or `ellipses`, k of them, on a tissue of half-size L (mm)."""
+    kind: str
+    k: int
+    scale_mm: float
+
+    @property
+    def per_lump(self) -> int:
+        return ELLIPSE_PARAMS if self.kind == "ellipses" else CIRCLE_PARAMS
+
+    @property
+    def size(self) -> int:
+        return BACKGROUND_PARAMS + self.k * self.per_lump
+
+    def lump_slice(self, j: int) -> slice:
+        start = BACKGROUND_PARAMS + j * self.per_lump
+        return slice(start, start + self.per_lump)
+
+    @property
+    def name(self) -> str:
+        if self.k == 0:
+            return "none"
+        return f"{'ellipse' if self.kind == 'ellipses' else 'circles'}:{self.k}"
+
+
+def background(theta: np.ndarray, xy: np.ndarray, scale_mm: float) -> np.ndarray:
+    return theta[0] + (theta[1] * xy[:, 0] + theta[2] * xy[:, 1]) / scale_mm
+
+
+def log_rho2(params: np.ndarray, xy: np.ndarray, ellipse: bool) -> tuple[np.ndarray, np.ndarray]:
+    """log ρ² at each point and its derivatives (n × shape params) w.r.t. [cx, cy, log R(, e1, e2)]."""
+    lr2, d = _log_rho2_all(np.asarray(params, dtype=float)[None, :], xy, ellipse)
+    return lr2[:, 0], d[:, 0, :]
+
+
+def _log_rho2_all(lumps: np.ndarray, xy: np.ndarray, ellipse: bool) -> tuple[np.ndarray, np.ndarray]:
+    """log ρ² of every point (n) for every lump (k), and its derivatives (n × k × shape params)."""
+    ux = xy[:, 0:1] - lumps[None, :, 0]
+    uy = xy[:, 1:2] - lumps[None, :, 1]
+    r2 = ux * ux + uy * uy + TINY
+    lr = lumps[None, :, 2]
+    if not ellipse:
+        d = np.stack([-2.0 * ux / r2, -2.0 * uy / r2, np.full(r2.shape, -2.0)], axis=2)
+        return np.log(r2) - 2.0 * lr, d
+    e1, e2 = lumps[:, 3], lumps[:, 4]
+    eps = np.hypot(e1, e2)
+    cosh, sinh_over, d_sinh_over = np.cosh(eps), _sinh_over(eps), _d_sinh_over_by_eps(eps)
+    uxx, uyy = ux * ux - uy * uy, ux * uy
+    q = e1 * uxx + 2.0 * e2 * uyy
+    big_q = np.maximum(cosh * r2 - sinh_over * q, TINY)
+    dq_dux = 2.0 * cosh * ux - sinh_over * (2.0 * e1 * ux + 2.0 * e2 * uy)
+    dq_duy = 2.0 * cosh * uy - sinh_over * (-2.0 * e1 * uy + 2.0 * e2 * ux)
+    dq_de1 = sinh_over * e1 * r2 - d_sinh_over * e1 * q - sinh_over * uxx
+    dq_de2 = sinh_over * e2 * r2 - d_sinh_over * e2 * q - sinh_over * 2.0 * uyy
+    d = np.stack([-dq_dux / big_q, -dq_duy / big_q, np.full(r2.shape, -2.0), dq_de1 / big_q, dq_de2 / big_q], axis=2)
+    return np.log(big_q) - 2.0 * lr, d
+
+
+def _sinh_over(eps: np.ndarray) -> np.ndarray:
+    safe = np.maximum(eps, 1e-4)
+    return np.where(eps < 1e-4, 1.0 + eps * eps / 6.0, np.sinh(safe) / safe)
+
+
+def _d_sinh_over_by_eps(eps: np.ndarray) -> np.ndarray:
+    safe = np.maximum(eps, 1e-3)
+    return np.where(eps < 1e-3, 1.0 / 3.0 + eps * eps / 30.0, (safe * np.cosh(safe) - np.sinh(safe)) / safe**3)
+
+
+def _heights(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, jacobian: bool):
+    """a·p(x) of every lump (n × k) and, if asked, its derivatives (n × k × per-lump params)."""
+    lr2, d_lr2 = _log_rho2_all(lumps, xy, ellipse)
+    tail, s, a = lumps[:, -3], np.exp(lumps[:, -2]), np.exp(lumps[:, -1])
+    log_u = np.clip(0.5 * s * lr2, -700.0, 50.0)  # u = ρ^s
+    t, dt_dlog_u, dt_dtail = _log_h(log_u, tail)
+    t = np.clip(t, -700.0, 700.0)
+    p = 1.0 / (1.0 + np.exp(t))
+    if not jacobian:
+        return a * p, None
+    dh_dt = -a * p * (1.0 - p)
+    jac = np.empty(lr2.shape + (lumps.shape[1],))
+    jac[:, :, :-3] = (dh_dt * dt_dlog_u * 0.5 * s)[:, :, None] * d_lr2
+    jac[:, :, -3] = dh_dt * dt_dtail
+    jac[:, :, -2] = dh_dt * dt_dlog_u * log_u
+    jac[:, :, -1] = a * p
+    return a * p, jac
+
+
+def _log_h(log_u: np.ndarray, tail: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """t = log h for u = e^log_u (n × k), with dt/dlog u and dt/dλ; the Hill limit (λ = 0) by its series."""
+    t, dt_dlog_u, dt_dtail = np.empty_like(log_u), np.empty_like(log_u), np.empty_like(log_u)
+    for j, lam in enumerate(tail):  # one branch per lump, never both on every point
+        lu = log_u[:, j]
+        u = np.exp(lu)
+        if lam < 1e-4:
+            t[:, j] = lu + lam * (u - 1.0) / 2.0
+            dt_dlog_u[:, j] = 1.0 + lam * u / 2.0
+            dt_dtail[:, j] = (u - 1.0) / 2.0
+            continue
+        x = np.maximum(lam * u, 1e-300)
+        one_minus = -np.expm1(-x)  # 1 − e^{−x}
+        t[:, j] = np.where(x > 1e-8, x + np.log(np.maximum(one_minus, 1e-300)), np.log(x)) - math.log(math.expm1(lam))
+        dt_dlog_u[:, j] = x / np.maximum(one_minus, 1e-300)
+        dt_dtail[:, j] = u / np.maximum(one_minus, 1e-300) + 1.0 / math.expm1(-lam)
+    return t, dt_dlog_u, dt_dtail
+
+
+def rho_at(params: np.ndarray, t: float) -> float:
+    """ρ where a lump's log h equals t (its 1/(1 + eᵗ) level)."""
+    tail, s = params[-3], math.exp(params[-2])
+    if tail < 1e-4:
+        log_u = t
+    else:
+        x = math.log1p(math.exp(min(t + math.log(math.expm1(tail)), 700.0)))  # λu
+        log_u = math.log(max(x / tail, 1e-300))
+    return math.exp(log_u / s)
+
+
+def make_lump(center, radius_mm: float, sharpness: float, contrast: float, stretch=None, tail: float = 0.0):
+    """Parameters of one lump (an ellipse when `stretch` (e1, e2) is given)."""
+    shape = [] if stretch is None else [float(stretch[0]), float(stretch[1])]
+    return np.array([float(center[0]), float(center[1]), math.log(radius_mm), *shape, tail,
+                     math.log(sharpness), math.log(contrast)])
+
+
+def lump_height(params: np.ndarray, xy: np.ndarray, ellipse: bool) -> tuple[np.ndarray, np.ndarray]:
+    """a·p(x) for one lump and its derivatives (n × per-lump params)."""
+    h, jac = _heights(np.asarray(params, dtype=float)[None, :], xy, ellipse, True)
+    return h[:, 0], jac[:, 0, :]
+
+
+def lumps_of(family: Family, theta: np.ndarray) -> np.ndarray:
+    """The lumps' parameters as a (k × per-lump) array."""
+    return theta[BACKGROUND_PARAMS:].reshape(family.k, family.per_lump)
+
+
+def evaluate(family: Family, theta: np.ndarray, xy: np.ndarray, jacobian: bool = True):
+    """Model log stiffness at xy (n × 2), and (if asked) its Jacobian (n × family.size)."""
+    base = background(theta, xy, family.scale_mm)
+    if family.k == 0:
+        return base, (_background_jac(xy, family.scale_mm) if jacobian else None)
+    heights, jacs = _heights(lumps_of(family, theta), xy, family.kind == "ellipses", jacobian)
+    top = np.argmax(heights, axis=1)
+    rows = np.arange(len(xy))
+    m = heights[rows, top]
+    f = base + np.log1p(m)
+    if not jacobian:
+        return f, None
+    jac = np.zeros((len(xy), family.k, family.per_lump))
+    jac[rows, top] = jacs[rows, top] / (1.0 + m[:, None])
+    return f, np.hstack([_background_jac(xy, family.scale_mm), jac.reshape(len(xy), -1)])
+
+
+def heights_of(family: Family, theta: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """a_j·p_j(x) of every lump (n × k): which lump is felt where, and how much."""
+    if family.k == 0:
+        return np.zeros((len(xy), 0))
+    return _heights(lumps_of(family, theta), xy, family.kind == "ellipses", False)[0]
+
+
+def _background_jac(xy: np.ndarray, scale_mm: float) -> np.ndarray:
+    jac = np.empty((len(xy), BACKGROUND_PARAMS))
+    jac[:, 0] = 1.0
+    jac[:, 1:] = xy / scale_mm
+    return jac
+
+
+# -- geometry of one lump ---------------------------------------------------------------------------
+def axes_and_angle(params: np.ndarray, ellipse: bool) -> tuple[float, float, float]:
+    """(major, minor) semi-axes in mm and the major axis's angle in degrees, in [0, 180)."""
+    radius = math.exp(params[2])
+    if not ellipse:
+        return radius, radius, 0.0
+    e1, e2 = params[3], params[4]
+    eps = math.hypot(e1, e2)
+    # exp(−E)/R² has its smallest eigenvalue (longest axis) along E's eigenvector of eigenvalue +ε.
+    angle = 0.5 * math.degrees(math.atan2(e2, e1)) % 180.0
+    return radius * math.exp(eps / 2.0), radius * math.exp(-eps / 2.0), angle
+
+
+def edge_width_mm(params: np.ndarray) -> float:
+    """Distance from the 75 % to the 25 % level along a radius of the equal-area circle."""
+    log3 = math.log(3.0)
+    return math.exp(params[2]) * (rho_at(params, log3) - rho_at(params, -log3))
+
+
+def boundary_polygon(params: np.ndarray, ellipse: bool, vertices: int = 72) -> np.ndarray:
+    """The lump's 50 % boundary (ρ = 1) as a closed polygon (first vertex repeated)."""
+    major, minor, angle_deg = axes_and_angle(params, ellipse)
+    t = np.linspace(0.0, 2.0 * math.pi, vertices + 1)
+    c, s = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
+    ex, ey = major * np.cos(t), minor * np.sin(t)
+    points = np.column_stack([params[0] + c * ex - s * ey, params[1] + s * ex + c * ey])
+    points[-1] = points[0]
+    return points

@@ -1,0 +1,64 @@
+"""Write the measured-map CSVs of the scenes in config/scenes/maps/ (deterministic: rerun to check them).
+
+    .venv/bin/python scripts/make_scene_maps.py
+
+Each map is a grid of (x_mm, y_mm, stiffness_n_per_mm) samples over a 60 × 60 mm tissue, as a
+dense palpation grid would measure it (dVRK-style phantoms are mapped on 1–2 mm grids), with a
+relative measurement noise where a real map would have one:
+- half-stiff.csv: a smooth stiff region covering about half the tissue, its edge a gentle curve
+  with a ~6 mm wide rise, 2.5× the soft side, 2 % noise (a 1.5 mm grid);
+- gradual-lump.csv: a lump whose stiffness rises gradually, like a Gaussian (sd 7 mm), 4.7× at
+  its top: no sharp edge anywhere;
+- elongated-lump.csv: an elongated lump, 12 × 5 mm semi-axes at 30°, 6.7× the tissue.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+OUT = Path(__file__).resolve().parent.parent / "config" / "scenes" / "maps"
+TISSUE = 0.12
+
+
+def grid(step_mm: float) -> np.ndarray:
+    axis = np.arange(-30.0, 30.0 + 1e-9, step_mm)
+    gx, gy = np.meshgrid(axis, axis)
+    return np.column_stack([gx.ravel(), gy.ravel()])
+
+
+def half_stiff(xy: np.ndarray) -> np.ndarray:
+    signed = xy[:, 0] + 0.3 * xy[:, 1] + 0.012 * xy[:, 1] ** 2 - 4.0  # > 0 on the stiff side
+    return TISSUE * (1.0 + 1.5 / (1.0 + np.exp(-signed / 1.5)))
+
+
+def gradual_lump(xy: np.ndarray) -> np.ndarray:
+    r2 = (xy[:, 0] + 4.0) ** 2 + (xy[:, 1] - 6.0) ** 2
+    return TISSUE + (0.56 - TISSUE) * np.exp(-r2 / (2.0 * 7.0**2))
+
+
+def elongated_lump(xy: np.ndarray) -> np.ndarray:
+    c, s = math.cos(math.radians(30.0)), math.sin(math.radians(30.0))
+    ux, uy = xy[:, 0] - 3.0, xy[:, 1] + 2.0
+    rho = np.hypot((c * ux + s * uy) / 12.0, (-s * ux + c * uy) / 5.0)
+    return TISSUE + (0.8 - TISSUE) / (1.0 + rho**8)
+
+
+def write(name: str, xy: np.ndarray, k: np.ndarray) -> None:
+    rows = ["x_mm,y_mm,stiffness_n_per_mm"] + [f"{x:.2f},{y:.2f},{v:.5f}" for (x, y), v in zip(xy, k)]
+    (OUT / name).write_text("\n".join(rows) + "\n")
+
+
+def main() -> None:
+    rng = np.random.default_rng(11)
+    OUT.mkdir(parents=True, exist_ok=True)
+    xy = grid(1.5)
+    write("half-stiff.csv", xy, half_stiff(xy) * (1.0 + rng.normal(0.0, 0.02, len(xy))))
+    xy = grid(1.0)
+    write("gradual-lump.csv", xy, gradual_lump(xy))
+    write("elongated-lump.csv", xy, elongated_lump(xy))
+
+
+if __name__ == "__main__":
+    main()
