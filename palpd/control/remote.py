@@ -30,6 +30,7 @@ class ServoProcessError(PalpdError):
 
 def open_servo_bench(settings, scene, seed: int = 0, realtime: bool = False) -> Bench:
     """Start the servo process on the bench open_bench would open here; returns the parent's view of it."""
+    realtime = realtime or not settings.robot.url.startswith("sim")  # hardware runs on the wall clock, always
     context = multiprocessing.get_context("spawn")  # never fork a process that holds ZeroMQ threads
     ring = SampleRing.create()
     ours, theirs = context.Pipe()
@@ -97,6 +98,7 @@ class RemoteServo:
         self.fault: Fault | None = None
         self.last_tick = None
         self.max_contact_force_n = 0.0
+        self.true_max_contact_force_n: float | None = None
         self.motors_on = False
         self.amplifiers_on = None
         self.period_s = 0.001
@@ -109,15 +111,21 @@ class RemoteServo:
         return self.process.pid
 
     def start(self) -> None:
-        self.call("start")
+        """Amplifiers on and the arm home, supervised; raises ScanFault if safety stopped the homing."""
+        stopped_by = self.call("start")
+        if stopped_by is not None:
+            raise ScanFault(stopped_by)
 
     def stop(self) -> None:
-        """Motors off; a dead child's motors are already without current (the bridge watchdog)."""
+        """Park at the rest pose, then motors off; raises ScanFault if safety stopped the park. A dead
+        child's arm is already in the bridge watchdog's gravity hold."""
         if self.process.is_alive() and not self._closed:
             try:
-                self.call("stop")
+                stopped_by = self.call("stop")
             except ScanFault:
-                pass
+                return
+            if stopped_by is not None:
+                raise ScanFault(stopped_by)
 
     def reset(self) -> None:
         self.ring.set_estop(False)
@@ -213,6 +221,7 @@ class RemoteServo:
         self.fault, self.last_tick = state["fault"], state["last_tick"]
         self.max_contact_force_n, self.motors_on = state["max_contact_force_n"], state["motors_on"]
         self.forces.bias_n, self.amplifiers_on = state["bias_n"], state["amplifiers_on"]
+        self.true_max_contact_force_n = state["true_max_contact_force_n"]
 
     def _lost(self, why: str):
         """The child is gone or hung: kill it (the bridge watchdog cuts the current), latch, raise."""
