@@ -13,6 +13,7 @@ STATUS_ESTOP = 0x02
 STATUS_WATCHDOG_TRIPPED = 0x04
 STATUS_OVER_TEMPERATURE = 0x08
 STATUS_AMPLIFIERS_ON = 0x10
+STATUS_HOLDING = 0x20  # the host went silent: the bridge ramped the currents to the hold it was given
 
 # Flags a force sensor sets on a sample it cannot vouch for.
 SAMPLE_SATURATED = 0x01
@@ -57,7 +58,9 @@ class Robot(abc.ABC):
     def read(self) -> JointState: ...
 
     @abc.abstractmethod
-    def write(self, currents_a: tuple[float, float, float]) -> None: ...
+    def write(self, currents_a: tuple[float, float, float], hold_a: tuple[float, float, float] | None = None) -> None:
+        """Command motor currents; hold_a is what a device with a watchdog should fall back to if the
+        host goes silent (gravity compensation at this pose), None for no current."""
 
     def close(self) -> None:
         self.disable()

@@ -12,10 +12,11 @@ import drivers
 from drivers.clock import RealClock, VirtualClock
 from drivers.geometry import TissueFrame
 from drivers.phantom import model
-from palpd.control.controller import CartesianPD
+from palpd.control.controller import READING_AGE_PERIODS, CartesianPD
 from palpd.control.forces import ForceReader
 from palpd.control.health import SensorHealth
-from palpd.control.safety import NANO17_FORCE_RANGE_N, SafetySupervisor, refuse_unsafe_configuration
+from palpd.control.limits import NANO17_FORCE_RANGE_N, refuse_unsafe_configuration, rest_pose_mm
+from palpd.control.safety import SafetySupervisor
 from palpd.control.servo import ServoLoop
 from palpd.errors import ConfigError
 
@@ -102,8 +103,10 @@ def open_simulated_bench(settings, scene, seed: int = 0, realtime: bool = False)
 
 def _robot_options(settings, clock) -> dict:
     robot = settings.robot
+    # The reply to a tick's command is the next tick's reading unless that tick comes late.
     return {"clock": clock, "watchdog_s": robot.watchdog_s, "timeout_s": robot.timeout_s,
-            "current_limit_a": robot.current_limit_a}
+            "current_limit_a": robot.current_limit_a, "hold_after_s": robot.hold_after_s,
+            "hold_ramp_s": robot.hold_ramp_s, "reply_fresh_s": READING_AGE_PERIODS / settings.servo.rate_hz}
 
 
 def _assemble(settings, robot, sensor, clock, world=None) -> Bench:
@@ -114,21 +117,20 @@ def _assemble(settings, robot, sensor, clock, world=None) -> Bench:
         raise ConfigError(f"tissue.origin_mm {settings.tissue.origin_mm}: {exc}") from None
     refuse_unsafe_configuration(settings, frame, getattr(sensor, "force_range_n", NANO17_FORCE_RANGE_N))
     forces = ForceReader(settings.palpation.force_axes, settings.sensor.mount == "link2", q_aligned)
-    control = settings.control
-    supervisor = SafetySupervisor(settings.safety, settings.tissue.size_mm, _home_mm(frame), 1.0 / settings.servo.rate_hz)
-    health = SensorHealth(settings.safety, forces, settings.palpation.clearance_mm, 1.0 / settings.servo.rate_hz)
-    supervisor.monitors.append(health)
+    control, period_s = settings.control, 1.0 / settings.servo.rate_hz
+    # No command stays on longer than the bridge's hold plus half its ramp: the gains are designed for that.
+    max_hold_s = settings.robot.hold_after_s + settings.robot.hold_ramp_s / 2
+    supervisor = SafetySupervisor(settings.safety, settings.tissue.size_mm, rest_pose_mm(frame), period_s)
+    health = SensorHealth(settings.safety, forces, settings.palpation.clearance_mm, period_s)
+    supervisor.add_monitor(health)
     servo = ServoLoop(
         robot, sensor, clock, frame,
         CartesianPD(control.stiffness_n_per_mm, control.damping_n_s_per_mm, settings.robot.current_limit_a,
-                    settings.safety.force_cap_n),
-        supervisor, forces, settings.servo.rate_hz, control.velocity_filter_hz,
-        safety_settings=settings.safety, retract_height_mm=settings.palpation.clearance_mm,
+                    settings.safety.force_cap_n, period_s, max_hold_s, control.velocity_filter_hz),
+        supervisor,
+        forces, settings.servo.rate_hz, control.velocity_filter_hz,
+        safety_settings=settings.safety, clear_z_mm=settings.palpation.clearance_mm, truth=world,
+        drift_after_s=settings.robot.hold_after_s + settings.robot.hold_ramp_s,
     )
     servo.health = health  # its summary (re-tares, largest drift) goes into the scan report
     return Bench(servo, clock, frame, settings.tissue.size_mm, world)
-
-
-def _home_mm(frame: TissueFrame) -> tuple[float, float, float]:
-    """Where the tip rests at home (all joints zero), in the tissue frame."""
-    return tuple(1000.0 * v for v in frame.from_robot(model.forward((0.0, 0.0, 0.0))))  # type: ignore[return-value]

@@ -30,8 +30,18 @@ class _Section(BaseModel):
 class RobotSettings(_Section):
     url: str = "sim://"
     current_limit_a: Annotated[float, Field(gt=0, le=5.5)] = 5.5  # the RE25's stall current
-    watchdog_s: Annotated[float, Field(ge=0.002, le=60)] = 0.25  # the bridge cuts the motors after this silence
+    # The bridge's watchdog (PROTOCOL.md): after hold_after_s without a host frame it ramps the currents over
+    # hold_ramp_s to the gravity hold each command carries; after watchdog_s it cuts the amplifiers.
+    hold_after_s: Annotated[float, Field(ge=0.0005, le=0.05)] = 0.0015
+    hold_ramp_s: Annotated[float, Field(ge=0.0005, le=0.1)] = 0.001
+    watchdog_s: Annotated[float, Field(ge=0.002, le=60)] = 10.0
     timeout_s: Annotated[float, Field(gt=0, le=10)] = 0.05  # no answer from the bridge in this time: a fault
+
+    @model_validator(mode="after")
+    def _hold_before_cut(self):
+        if self.watchdog_s <= self.hold_after_s + self.hold_ramp_s:
+            raise ValueError("watchdog_s must be longer than hold_after_s + hold_ramp_s (hold first, then cut)")
+        return self
 
 
 class SensorSettings(_Section):
@@ -101,9 +111,16 @@ class SafetySettings(_Section):
     joint_limit_margin_rad: NonNegative = 0.02  # stop this short of the hard stops
     max_joint_speed_rad_s: Positive = 20.0  # an encoder step faster than this is a glitch, not motion
     max_sample_age_s: Positive = 0.005  # a force sample older than this is stale (a frozen sensor)
-    max_tick_gap_s: Positive = 0.005  # a servo tick later than this after the last one is a stalled loop
-    retract_speed_mm_s: Annotated[float, Field(gt=0, le=200)] = 60.0  # controlled stop: back out this fast
-    retract_timeout_s: Annotated[float, Field(gt=0, le=5)] = 0.5  # then cut the current, retracted or not
+    # Loop stalls: an ordinary kernel deschedules the servo for a few ms now and then, and the controller
+    # and the bridge's hold ride that out; one gap beyond max_tick_gap_s, or more than late_budget_s of
+    # lateness within about a second, is a stalled loop.
+    max_tick_gap_s: Annotated[float, Field(gt=0, le=1)] = 0.1
+    late_budget_s: Annotated[float, Field(gt=0, le=1)] = 0.25
+    rigid_window_s: Annotated[float, Field(gt=0, le=5)] = 0.05  # at the cap with the tip still this long: rigid
+    max_tracking_error_mm: Positive = 10.0  # the tip this far from its setpoint...
+    tracking_window_s: Annotated[float, Field(gt=0, le=5)] = 0.1  # ...for this long: the controller cannot follow
+    retract_speed_mm_s: Annotated[float, Field(gt=0, le=200)] = 60.0  # controlled stop: back out, then park, this fast
+    retract_timeout_s: Annotated[float, Field(gt=0, le=5)] = 0.5  # not backed out by then: cut the current
     # Sensor health (palpd.control.health): a reading repeated this long is a frozen sensor; at every approach
     # the force out of contact over drift_window_s is compared with the tare: re-tare beyond drift_retare_n,
     # fault beyond drift_fault_n.

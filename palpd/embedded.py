@@ -49,7 +49,7 @@ def run_simulated_scan(settings, scene, progress: Callable | None = None, realti
     finally:
         bench.servo.close()
     truth = metrics.scene_truth(scene, settings.scan.min_contrast)
-    report["truth"] = {"lumps": truth}
+    report["truth"] = {"lumps": truth, **report.get("truth", {})}  # with the world\'s true peak force, if known
     report["metrics"] = metrics.compare(truth, report["lumps"])
     return report, planner
 

@@ -14,7 +14,7 @@ from palpd.estimate import estimate_lumps
 from palpd.stiffness import FitRejected, StiffnessResult
 from palpd.stiffness.palpation import fit_palpation
 
-PARK_HEIGHT_MM = 20.0
+PARK_HEIGHT_MM = 20.0  # a single probe (probe.at) backs out this high before the servo parks the arm
 
 
 @dataclass
@@ -117,8 +117,8 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     wall_start, robot_start = time.monotonic(), bench.clock.now()
     probes: list[Probe] = []
     faults = []
-    servo.start()
     try:
+        servo.start()  # homes the arm first, supervised: after a category-0 stop it may lie anywhere
         xy = planner.next_probe()
         first = (xy[0], xy[1], p.clearance_mm) if xy is not None else (0.0, 0.0, p.clearance_mm)
         servo.run(MoveTo(first, p.travel_speed_mm_s, p.accel_mm_s2))
@@ -131,14 +131,13 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
             if progress:
                 progress(len(probes), max(planner.expected_total, len(probes)), probes[-1])
             xy = planner.next_probe()
-        park = servo.last_tick.tip_mm
-        servo.run(MoveTo((park[0], park[1], PARK_HEIGHT_MM), p.travel_speed_mm_s, p.accel_mm_s2))
+        servo.stop()  # parks at the rest pose, then the amplifiers go off
     except ScanFault:
         faults.append(servo.fault.as_dict())
     finally:
         servo.stop()
     lumps, verdict, model = _estimate(planner, probes, settings)
-    return {
+    body = {
         "strategy": settings.scan.strategy,
         "seed": settings.scan.seed,
         "palpations": len(probes),
@@ -152,3 +151,7 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
         "lumps": [lump.as_dict() for lump in lumps],
         "probes": [pr.as_dict() for pr in probes],
     }
+    true_peak_n = servo.true_max_contact_force_n
+    if true_peak_n is not None:  # in simulation: what the tissue really took, at every physics step
+        body["truth"] = {"max_contact_force_n": round(true_peak_n, 4)}
+    return body

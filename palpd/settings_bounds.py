@@ -33,8 +33,12 @@ class Bound:
 TIMEOUT_REASON = "a device silent for longer is unplugged or hung, and the loop must say so"
 BOUNDS: dict[str, Bound] = {
     "robot.current_limit_a": Bound(5.5, "A", "the Maxon RE25's stall current"),
-    "robot.watchdog_s": Bound(0.5, "s", "the bridge keeps the last current until its watchdog trips, and an arm "
-                                        "driven that long without its host is a runaway", low=0.002, low_inclusive=True),
+    "robot.hold_after_s": Bound(0.05, "s", "the bridge keeps the last current until then, and an arm driven that "
+                                           "long without its host is a runaway", low=0.0005, low_inclusive=True),
+    "robot.hold_ramp_s": Bound(0.1, "s", "the currents must reach the gravity hold while the arm is still where "
+                                         "its host left it", low=0.0005, low_inclusive=True),
+    "robot.watchdog_s": Bound(60.0, "s", "an arm floating in the gravity hold longer than that without its host "
+                                         "is left unattended", low=0.002, low_inclusive=True),
     "robot.timeout_s": Bound(0.1, "s", "the servo loop waits this long for each reply, and a longer wait is a "
                                        "loop stall (safety.max_tick_gap_s is at most 0.1 s)"),
     "sensor.timeout_s": Bound(1.0, "s", TIMEOUT_REASON),
@@ -57,6 +61,11 @@ BOUNDS: dict[str, Bound] = {
     "safety.max_sample_age_s": Bound(0.05, "s", "an older force reading no longer describes the contact (the "
                                                 "probe moves 0.5 mm in 50 ms at 10 mm/s)"),
     "safety.max_tick_gap_s": Bound(0.1, "s", "a longer gap is no longer servo control"),
+    "safety.late_budget_s": Bound(1.0, "s", "more lateness than that within a second is no longer servo control"),
+    "safety.rigid_window_s": Bound(1.0, "s", "pressing at the cap on something rigid for longer hurts what is pressed"),
+    "safety.max_tracking_error_mm": Bound(30.0, "mm", "a tip further than that from where it is sent is not under "
+                                                      "control (the tissue is 40 mm across)"),
+    "safety.tracking_window_s": Bound(1.0, "s", "an arm that cannot follow for longer is not under control"),
     "safety.retract_speed_mm_s": Bound(200.0, "mm/s", "a controlled stop backs out gently"),
     "safety.retract_timeout_s": Bound(5.0, "s", "a stop that takes longer is no controlled stop"),
     "safety.frozen_window_s": Bound(0.02, "s", "the force cap is blind while the sensor is frozen"),

@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import json
 import os
+import random
 import signal
+import socket
 import subprocess
 import sys
 import time
@@ -21,21 +23,30 @@ SCENES = ROOT / "config" / "scenes"
 PORT_RANGE = (61000, 65535)
 
 
-def free_loopback_ports(context: zmq.Context, count: int) -> list[int]:
-    """Distinct free ports: all probe sockets stay bound until every port is chosen."""
-    probes = [context.socket(zmq.PUB) for _ in range(count)]
+def free_loopback_ports(count: int) -> list[int]:
+    """Distinct free loopback ports, probed with plain OS sockets: closing one frees its port at once. (A ZeroMQ
+    probe closes later, in its context's I/O thread, and a client of that context could connect to it meanwhile:
+    a handshake with a dying PUB, and no reply for 30 s.)"""
+    probes = []
     try:
-        return [probe.bind_to_random_port("tcp://127.0.0.1", *PORT_RANGE) for probe in probes]
+        while len(probes) < count:
+            probe = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            probes.append(probe)
+            try:
+                probe.bind(("127.0.0.1", random.randint(*PORT_RANGE)))
+            except OSError:  # taken: try another
+                probes.pop().close()
+        return [probe.getsockname()[1] for probe in probes]
     finally:
         for probe in probes:
-            probe.close(linger=0)
+            probe.close()
 
 
 class Daemon:
     def __init__(self, tmp_path: Path, scene: str = "paper.toml", realtime: bool = False, env: dict | None = None,
                  args: tuple = ()):
         self.context = zmq.Context()
-        events_port, commands_port, http_port = free_loopback_ports(self.context, 3)
+        events_port, commands_port, http_port = free_loopback_ports(3)
         self.events, self.commands = f"tcp://127.0.0.1:{events_port}", f"tcp://127.0.0.1:{commands_port}"
         self.http = f"http://127.0.0.1:{http_port}/"  # the live view (never the default 8080: others may run one)
         self.state_dir = tmp_path / "state"
@@ -55,6 +66,9 @@ class Daemon:
     def socket(self, kind: int, keys: dict | None = None) -> zmq.Socket:
         socket = self.context.socket(kind)
         socket.setsockopt(zmq.LINGER, 0)
+        # A connection whose ZMTP handshake stalls (an accepted connect before the daemon's socket is up) is
+        # dropped and retried after 1 s, not after ZeroMQ's default 30 s, the whole of a wait_for.
+        socket.setsockopt(zmq.HANDSHAKE_IVL, 1000)
         for option, value in (keys or {}).items():
             setattr(socket, option, value)
         self._sockets.append(socket)

@@ -7,8 +7,8 @@ import pytest
 import drivers
 from drivers.clock import RealClock, VirtualClock
 from drivers.errors import DriverInitializationError, DriverOperationError, DriverTimeoutError
-from drivers.interfaces import STATUS_AMPLIFIERS_ON, STATUS_WATCHDOG_TRIPPED
-from drivers.phantom import codec
+from drivers.interfaces import STATUS_AMPLIFIERS_ON, STATUS_HOLDING, STATUS_WATCHDOG_TRIPPED
+from drivers.phantom import codec, model
 from drivers.phantom.bridge import open_bridge_robot
 from drivers.sim.bridge_device import BridgeDevice
 from drivers.sim.scene import Scene
@@ -40,28 +40,59 @@ def test_currents_reach_the_simulated_motors_and_encoders_come_back(served):
     host, endpoint = served
     with open_bridge_robot(endpoint.url, timeout_s=TIMEOUT_S) as robot:
         robot.enable()
-        robot.write((0.0, 0.4, 0.0))
-        time.sleep(0.05)
-        state = robot.read()
-        assert state.status & STATUS_AMPLIFIERS_ON
+        robot.write((0.0, 0.4, 0.0), (0.0, 0.45, 0.0))
+        robot.read()  # the command's reply: the state as the bridge applied it
         assert host.world.currents_a == pytest.approx((0.0, 0.4, 0.0))
+        time.sleep(0.05)  # a silent host: the bridge ramps to the hold the command carried
+        state = robot.read()
+        assert state.status & STATUS_AMPLIFIERS_ON and state.status & STATUS_HOLDING
+        assert host.world.currents_a == pytest.approx((0.0, 0.45, 0.0))
         assert 0 < state.device_t_s <= host.world.t_s and all(isinstance(c, int) for c in state.counts)
+        robot.write((0.0, 0.3, 0.0))  # a command ends the hold
+        assert not robot.read().status & STATUS_HOLDING and host.world.currents_a == pytest.approx((0.0, 0.3, 0.0))
         robot.disable()
         assert robot.read().status & STATUS_AMPLIFIERS_ON == 0
         assert host.world.currents_a == (0.0, 0.0, 0.0)
 
 
-def test_the_bridge_watchdog_cuts_the_motors_when_the_host_goes_silent(served):
+def test_the_bridge_watchdog_holds_first_then_cuts_the_motors_when_the_host_goes_silent(served):
     host, endpoint = served
-    with open_bridge_robot(endpoint.url, timeout_s=TIMEOUT_S, watchdog_s=0.05) as robot:
+    with open_bridge_robot(endpoint.url, timeout_s=TIMEOUT_S, watchdog_s=0.2) as robot:
         robot.enable()
-        robot.write((0.3, 0.3, 0.3))
-        time.sleep(0.2)  # four watchdog periods of silence
+        robot.write((0.3, 0.3, 0.3), (0.0, 0.45, 0.0))
+        time.sleep(0.05)  # past the short watchdog: holding, still powered
+        assert host.world.amplifiers_on and host.world.currents_a == pytest.approx((0.0, 0.45, 0.0))
+        time.sleep(0.4)  # past the long one: cut and latched
         assert host.world.amplifiers_on is False and host.world.currents_a == (0.0, 0.0, 0.0)
         robot.write((0.3, 0.3, 0.3))  # ignored while latched
         assert robot.read().status & STATUS_WATCHDOG_TRIPPED and not host.world.amplifiers_on
         robot.enable()  # enable + clear
         assert robot.read().status & STATUS_WATCHDOG_TRIPPED == 0
+
+
+def test_the_watchdog_ramps_to_the_hold_in_physics_time_and_the_arm_then_floats():
+    """Virtual time: the ramp begins hold_after_s after the last command, lasts hold_ramp_s, and the arm under
+    its gravity hold neither falls nor is pushed; watchdog_s after the last frame the power goes."""
+    world = make_world(VirtualClock())
+    robot = drivers.open_robot("sim://", world=world, clock=world.clock, watchdog_s=1.0, hold_after_s=0.002,
+                               hold_ramp_s=0.004)
+    currents = []
+    world.step_hook = lambda w: currents.append((round(w.t_s, 6), w.currents_a[1], w.tip_mm()))
+    robot.enable()
+    hold = model.torques_to_currents(tuple(-g for g in model.gravity_torques(model.HOME_Q)))
+    robot.write((0.0, 0.6, 0.0), hold)  # held 2 ms as it is, then ramped to gravity compensation
+    world.clock.sleep_until(world.clock.now() + 0.9)
+    robot.read()  # a READ feeds the cut-off watchdog but does not end the hold
+    by_time = dict((t, i) for t, i, _ in currents)
+    t0 = currents[0][0] - 0.0005
+    assert by_time[round(t0 + 0.002, 6)] == pytest.approx(0.6)
+    assert by_time[round(t0 + 0.004, 6)] == pytest.approx(0.6 + 0.5 * (hold[1] - 0.6), abs=0.02)
+    assert by_time[round(t0 + 0.0065, 6)] == pytest.approx(hold[1], abs=0.001)  # mA on the wire
+    heights = [tip[2] for t, _, tip in currents]
+    assert max(heights) - min(heights) < 1.0  # it floats: 0.9 s in the hold, not a millimetre of fall or rise
+    world.clock.sleep_until(world.clock.now() + 1.2)
+    robot.transport.device.check_watchdog(world.clock.now())
+    assert not world.amplifiers_on and robot.transport.device.tripped
 
 
 def test_a_stalled_bridge_is_detected_within_one_timeout(served):
@@ -106,7 +137,9 @@ def test_sim_url_goes_through_the_codec_in_process():
     robot.enable()
     robot.write((0.0, 0.5, 0.0))
     assert world.currents_a == (0.0, 0.5, 0.0)
+    robot.read()  # collects the command's reply: no second exchange
     assert robot.transport.device.decoder.rejected_frames == 0 and robot.state.ack_seq == robot._seq
+    assert robot.exchanges == 3  # the opening READ, the enable, the command
 
 
 def test_opening_an_absent_device_fails_at_once_naming_it(tmp_path):

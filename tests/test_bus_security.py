@@ -134,12 +134,12 @@ def test_the_learner_over_curve_hears_the_daemon_and_answers_only_known_keys(cur
     env, paths = curve_config
     server_public, server_secret = zmq.auth.load_certificate(str(paths / "server" / "palpd.key_secret"))
     alice = zmq.auth.load_certificate(str(paths / "server" / "alice.key_secret"))
+    learner_port = free_loopback_ports(1)[0]
     context = zmq.Context()
     bus = context.socket(zmq.XPUB)  # stands in for the daemon's event socket, a CURVE server with its keys
     bus.curve_secretkey, bus.curve_publickey, bus.curve_server = server_secret, server_public, True
     bus.setsockopt(zmq.LINGER, 0)
     port = bus.bind_to_random_port("tcp://127.0.0.1", *PORT_RANGE)
-    learner_port = free_loopback_ports(context, 1)[0]
     learner = subprocess.Popen([sys.executable, "-m", "palpd", "learner"], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True,
                                env=env | {"PALPD_BUS__EVENTS": f"tcp://127.0.0.1:{port}",

@@ -5,7 +5,8 @@ from drivers.phantom import codec
 
 seqs = st.integers(0, 0xFFFF)
 currents = st.tuples(*[st.integers(-codec.MAX_CURRENT_MA, codec.MAX_CURRENT_MA)] * 3)
-commands = st.builds(codec.Command, st.booleans(), st.booleans(), st.integers(0, 0xFFFF), currents)
+commands = st.builds(codec.Command, st.booleans(), st.booleans(), st.integers(0, 0xFFFF), currents,
+                     st.integers(0, 0xFFFF), st.integers(0, 0xFFFF), currents)  # ... hold after, ramp, hold currents
 states = st.builds(codec.State, st.tuples(*[st.integers(-2**31, 2**31 - 1)] * 3), st.integers(0, 255),
                    st.integers(0, 2**32 - 1), seqs, st.integers(0, 0xFFFF))
 frames = st.one_of(
@@ -87,3 +88,14 @@ def test_out_of_range_currents_are_clamped_not_wrapped():
     raw = codec.encode_command(1, codec.Command(True, False, 0, (40000, -40000, 0)))
     (frame,) = codec.FrameDecoder().feed(raw)
     assert codec.decode_command(frame.payload).currents_ma == (32767, -32767, 0)
+
+
+@given(states)
+def test_the_hosts_one_frame_fast_path_agrees_with_the_decoder(state):
+    raw = codec.encode_state(9, state)
+    assert codec.parse_state_frame(raw) == (9, state)
+    (frame,) = codec.FrameDecoder().feed(raw)
+    assert codec.decode_state(frame.payload) == state
+    damaged = bytearray(raw)
+    damaged[10] ^= 0x01
+    assert codec.parse_state_frame(bytes(damaged)) is None and codec.parse_state_frame(raw + b"\x00") is None

@@ -135,8 +135,8 @@ def test_palpctl_watch_probe_bias_estop_reset_and_a_probe_survives_kill_9(daemon
         palpctl("estop")
         assert lines.wait_for("fault:") == "fault: estop emergency stop requested"
         assert daemon.call("status")["state"] == "fault"
-        palpctl("reset")
-        assert daemon.call("status")["state"] == "ready"
+        palpctl("reset")  # the arm is brought home, supervised, then the daemon is ready again
+        daemon.wait_for(lambda s: s["state"] == "ready", what="ready after reset")
         watch.send_signal(signal.SIGINT)
         assert watch.wait(10) == 0
     finally:

@@ -8,7 +8,7 @@ import sys
 import pytest
 import zmq
 
-from daemon_client import PORT_RANGE
+from daemon_client import free_loopback_ports
 
 from conftest import ROOT
 from palpd.bus.messages import Estimate, Stiffness
@@ -21,13 +21,6 @@ def ctx():
     context = zmq.Context()
     yield context
     context.destroy(linger=0)
-
-
-def free_port(ctx) -> int:
-    probe = ctx.socket(zmq.PUB)
-    port = probe.bind_to_random_port("tcp://127.0.0.1", *PORT_RANGE)
-    probe.close(linger=0)
-    return port
 
 
 def receive(sock, timeout_ms=TIMEOUT_MS):
@@ -43,7 +36,7 @@ def test_learner_process_turns_stiffness_into_estimates_with_next_probe(ctx, tmp
     bus = ctx.socket(zmq.XPUB)
     bus.setsockopt(zmq.LINGER, 0)
     events_port = bus.bind_to_random_port("tcp://127.0.0.1")
-    learner_port = free_port(ctx)
+    (learner_port,) = free_loopback_ports(1)
     cfg = tmp_path / "palpd.toml"
     cfg.write_text(f'[bus]\nevents = "tcp://127.0.0.1:{events_port}"\n'
                    f'learner_events = "tcp://127.0.0.1:{learner_port}"\n[learner]\ngrid_points = 61\n')

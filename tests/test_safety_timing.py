@@ -17,7 +17,7 @@ from palpd.control.tasks import MoveTo
 from palpd.errors import ScanFault
 
 SLOW_JOINTS_RAD_S = 0.8  # above the ~0.46 rad/s of an 80 mm/s move, below what a 3.5 ms late tick looks like per period
-LATE_S = 0.0035  # shorter than max_tick_gap_s (5 ms): a descheduled host, not a stalled loop
+LATE_S = 0.0035  # far shorter than max_tick_gap_s: a descheduled host, not a stalled loop
 
 
 def moving_bench(**safety):
@@ -52,7 +52,7 @@ def test_a_late_tick_during_fast_motion_is_no_encoder_jump_and_no_speed_spike():
     assert bench.servo.fault is None
     before, after = ticks[199], ticks[200]
     step_rad = max(abs(a - b) for a, b in zip(after.q, before.q))
-    assert after.gap_s == pytest.approx(LATE_S, abs=0.0006)
+    assert LATE_S < after.gap_s < Settings().safety.max_tick_gap_s  # the stall, the skipped periods, the reading's age
     assert step_rad > SLOW_JOINTS_RAD_S * bench.servo.period_s + max(model.RAD_PER_COUNT)  # one-period rule trips
     speeds = [math.dist(t.velocity_mm_s, (0, 0, 0)) for t in ticks[195:210]]
     assert max(speeds) < 1.3 * 80.0  # the velocity is over the real gap: 3.5x the step is not 3.5x the speed
@@ -75,7 +75,7 @@ def test_an_encoder_jump_is_still_caught_within_one_tick_during_the_same_motion(
 def test_a_gap_longer_than_max_tick_gap_is_still_a_loop_stall():
     bench = moving_bench()
     with pytest.raises(ScanFault, match="loop_stall"):
-        run_with(bench, 200, lambda b: stall(b.clock, 0.008))
+        run_with(bench, 200, lambda b: stall(b.clock, Settings().safety.max_tick_gap_s + 0.001))
 
 
 def test_the_bridges_wrapping_device_clock_gives_the_sample_gap():
@@ -86,7 +86,7 @@ def test_the_bridges_wrapping_device_clock_gives_the_sample_gap():
     ticks = run_with(bench, 200, late_tick)
     assert bench.servo.fault is None and len(ticks) > 250
     assert all(t.sample_gap_s == pytest.approx(t.gap_s, abs=1e-6) for t in ticks[1:])
-    assert max(t.sample_gap_s for t in ticks) == pytest.approx(LATE_S, abs=0.0006)
+    assert max(t.sample_gap_s for t in ticks) > LATE_S
 
 
 def supervisor():
@@ -119,3 +119,58 @@ def test_a_jump_beyond_the_longest_legal_gap_is_always_caught(gap_s, sign, joint
     q[joint] += sign * 1.01 * (safety.max_joint_speed_rad_s * safety.max_tick_gap_s + model.RAD_PER_COUNT[joint])
     fault = check.check(tick_at(1.0 + gap_s, tuple(q), gap_s))
     assert fault is not None and fault.code == "encoder_jump"
+
+
+def pressing_tick(t_s, force_n, tip_mm=(0.0, 0.0, -3.0), commanded_n=None, gap_s=0.001, lost_s=0.0):
+    cap = Settings().safety.force_cap_n
+    sample = ForceSample(t_s, (0.0, 0.0, force_n), (0.0, 0.0, 0.0))
+    return Tick(t_s, (0.1, 0.3, 0.2), tip_mm, (0.0, 0.0, 0.0), (0.0, 0.0, force_n), force_n, sample, 0, gap_s,
+                gap_s, t_s, tip_mm, cap if commanded_n is None else commanded_n, lost_s)
+
+
+def first_fault(check, ticks):
+    return next((f for f in map(check.check, ticks) if f is not None), None)
+
+
+def test_commanding_the_cap_while_the_sensor_reads_nothing_is_no_rigid_contact():
+    """The old rule named an instability in free space (0.07 N measured, 60 mm up) rigid contact."""
+    check = supervisor()
+    assert first_fault(check, [pressing_tick(1.0 + i * 0.001, 0.07) for i in range(1000)]) is None
+
+
+def test_measured_force_at_the_cap_with_the_tip_still_is_rigid_contact_once_the_window_is_over():
+    window_s = Settings().safety.rigid_window_s
+    check = supervisor()
+    ticks = [pressing_tick(1.0 + i * 0.001, 5.7) for i in range(200)]
+    fault = first_fault(check, ticks)
+    assert fault.code == "rigid_contact" and fault.t_s == pytest.approx(1.0 + window_s, abs=0.0011)
+    moving = [pressing_tick(1.0 + i * 0.001, 5.7, tip_mm=(0.0, 0.0, -3.0 - 0.01 * i)) for i in range(200)]
+    assert first_fault(supervisor(), moving) is None  # still sinking in: soft, not rigid (the cap check guards it)
+
+
+@hypothesis_settings(max_examples=100, deadline=None)
+@given(gaps_ms=st.lists(st.floats(0.0, 1.49), min_size=50, max_size=300))
+def test_jitter_within_a_period_never_adds_up_to_a_loop_stall(gaps_ms):
+    check, t = supervisor(), 1.0
+    for gap_ms in gaps_ms:
+        t += gap_ms / 1000.0
+        assert check.check(pressing_tick(t, 0.0, commanded_n=0.0, gap_s=gap_ms / 1000.0)) is None
+
+
+def test_isolated_gaps_under_the_limit_pass_and_missed_deadlines_beyond_the_budget_are_a_stall():
+    safety = Settings().safety
+    check, t = supervisor(), 1.0
+    for _ in range(5):  # one late tick a second, just under the limit: ridden out
+        for _ in range(1000):
+            t += 0.001
+            assert check.check(pressing_tick(t, 0.0, commanded_n=0.0)) is None
+        gap = safety.max_tick_gap_s - 0.001
+        t += gap
+        assert check.check(pressing_tick(t, 0.0, commanded_n=0.0, gap_s=gap, lost_s=gap - 0.001)) is None
+    fault = check.check(pressing_tick(t + 0.2, 0.0, commanded_n=0.0, gap_s=safety.max_tick_gap_s + 0.001))
+    assert fault.code == "loop_stall"
+    starved, t, fault = supervisor(), 1.0, None
+    while fault is None and t < 3.0:  # 10 ms lost every 11 ms: the budget runs out well within a second
+        t += 0.011
+        fault = starved.check(pressing_tick(t, 0.0, commanded_n=0.0, gap_s=0.011, lost_s=0.01))
+    assert fault.code == "loop_stall" and "deadlines" in fault.message and t < 1.0 + 2 * safety.late_budget_s

@@ -21,11 +21,8 @@ def uniform_scene(k=0.12, tilt=False, **sensor):
 def test_raster_scan_of_the_paper_scene_finds_the_lump_within_2_5_mm():
     scene = load_scene(SCENES / "paper.toml")
     settings = Settings()
-    bench = open_servo_bench(settings, scene)  # the servo loop in its own process, as `palpd scan` runs it
-    try:
-        report = run_scan(bench, settings, plan("raster", scene.tissue.size_mm, 81, 0))
-    finally:
-        bench.servo.close()
+    # In this process: the servo process path is the CLI tests' (test_cli_scan_writes_report_and_plot).
+    report = run_scan(open_simulated_bench(settings, scene), settings, plan("raster", scene.tissue.size_mm, 81, 0))
     assert report["faults"] == [] and report["palpations"] == 81
     (lump,) = report["lumps"]
     truth = scene.lump[0]

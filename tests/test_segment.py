@@ -35,9 +35,9 @@ def hand_session(k=0.12, count=12, seed=5, drift_n_per_s=(0.0, 0.0, 0.02)):
     bench.world.faults.sensor_drift_n_per_s = drift_n_per_s
     p = settings.palpation
     session = ManualSession(Segmenter(p.contact_on_n, p.contact_off_n), hand.end_s + 0.3)
-    bench.servo.start()
+    bench.servo.start(home=False)  # the person holds the arm: it is not taken home
     bench.servo.run(session)  # not tared: the segmenter tracks the zero itself
-    bench.servo.stop()
+    bench.servo.stop(park=False)  # the person holds the arm: power off where it is
     return hand, session
 
 

@@ -11,7 +11,6 @@ import time
 
 import jsonschema
 import pytest
-import zmq
 
 from browser import CHROMIUM, HeadlessChromium
 from conftest import ROOT
@@ -22,9 +21,7 @@ from palpd.client import Client, CommandRefused
 
 @pytest.fixture(scope="module")
 def daemon(tmp_path_factory):
-    context = zmq.Context()
-    (foxglove_port,) = free_loopback_ports(context, 1)
-    context.term()
+    (foxglove_port,) = free_loopback_ports(1)
     d = Daemon(tmp_path_factory.mktemp("service"), env={"PALPD_DAEMON__FOXGLOVE": f"127.0.0.1:{foxglove_port}"})
     d.foxglove = f"ws://127.0.0.1:{foxglove_port}"
     d.start().wait_for(lambda s: s["state"] == "ready", what="ready")

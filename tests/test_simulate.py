@@ -1,6 +1,7 @@
 """palpd simulate as its own process, and palpd scan against it over socket:// and Net F/T."""
 import json
 import os
+import signal
 import time
 
 import pytest
@@ -9,15 +10,17 @@ from conftest import SCENES, assert_one_line_error
 from remote_bench import bench_config, serve_simulator
 
 
-@pytest.fixture
-def simulator(tmp_path):
-    """A `palpd simulate` process with the bridge on TCP and Net F/T; yields its endpoint lines."""
-    yield from serve_simulator(tmp_path, "--bridge", "tcp://127.0.0.1:0", "--netft", "127.0.0.1:0")
+@pytest.fixture(scope="module")
+def simulator(tmp_path_factory):
+    """One `palpd simulate` for the module (bridge on TCP, Net F/T): scans run against it one after another,
+    as against a bench that stays on."""
+    yield from serve_simulator(tmp_path_factory.mktemp("sim"), "--bridge", "tcp://127.0.0.1:0", "--netft",
+                               "127.0.0.1:0")
 
 
 def test_scan_runs_against_a_separately_started_simulator(simulator, tmp_path, run_cli):
-    bench_config(tmp_path / "remote.toml", simulator)
     assert simulator["bridge"].startswith("socket://127.0.0.1:")
+    bench_config(tmp_path / "remote.toml", simulator)
     result = run_cli("scan", "--scene", SCENES / "paper.toml", "--config", "remote.toml",
                      "--max-palpations", "1", "--report", "r.json")
     assert result.returncode == 0, result.stderr
@@ -26,6 +29,48 @@ def test_scan_runs_against_a_separately_started_simulator(simulator, tmp_path, r
     (probe,) = report["probes"]
     assert probe["xy_mm"] == pytest.approx([0.0, 0.0], abs=0.3) and 0.4 < probe["stiffness_n_per_mm"] < 0.9  # on the lump, felt remotely
     assert report["wall_time_s"] > 0.8 * report["robot_time_s"]  # it really ran on the wall clock
+    assert "max_contact_force_n" not in report["truth"]  # the truth is in the other process: not claimed
+
+
+def test_a_killed_servo_process_leaves_the_arm_in_the_bridges_gravity_hold_and_the_next_scan_runs(
+        simulator, tmp_path):
+    """kill -9 of the servo child mid-air: the bridge's short watchdog ramps to the gravity hold the last command
+    carried (not the last current for 250 ms, not a fall); a new scan takes over without a new simulator."""
+    from drivers.interfaces import STATUS_AMPLIFIERS_ON, STATUS_HOLDING
+    from drivers.phantom import model
+    from drivers.phantom.bridge import open_bridge_robot
+    from drivers.sim.scene import load_scene
+    from palpd.config import load_settings
+    from palpd.control.remote import open_servo_bench
+    from palpd.control.tasks import HoldAndCollect, MoveTo
+
+    settings = load_settings(bench_config(tmp_path / "remote.toml", simulator))
+    bench = open_servo_bench(settings, load_scene(SCENES / "paper.toml"))
+    try:
+        bench.servo.start()
+        bench.servo.run(MoveTo((10.0, 10.0, 20.0), 80.0, 2000.0))  # 16 mm above the tissue
+        bench.servo.run(HoldAndCollect(200))  # still there (the hold settles it), and killed right after
+        os.kill(bench.servo.pid, signal.SIGKILL)
+        bench.servo.process.join(5)
+    finally:
+        bench.servo.close()
+    observer = open_bridge_robot(simulator["bridge"], timeout_s=0.2)  # READs only: they command nothing
+    try:
+        first = observer.read()
+        time.sleep(0.3)  # unpowered, the arm would have fallen the 16 mm onto the tissue by now
+        later = observer.read()
+    finally:
+        observer.transport.close()  # (not close(): that would disable the amplifiers, as a host does)
+    assert later.status & STATUS_AMPLIFIERS_ON and later.status & STATUS_HOLDING
+    heights_mm = [1000.0 * bench.frame.from_robot(model.forward(s.angles_rad))[2] for s in (first, later)]
+    assert heights_mm[0] > 10.0 and heights_mm[1] > heights_mm[0] - 2.0, heights_mm  # floating, not falling
+    again = open_servo_bench(settings, load_scene(SCENES / "paper.toml"))  # the same simulator, still running
+    try:
+        again.servo.start()  # what a scan does first: takes the arm over and brings it home, supervised
+        again.servo.stop()  # parked in its stand, powered off
+        assert again.servo.fault is None and again.servo.last_tick.tip_mm[2] > 50.0
+    finally:
+        again.servo.close()
 
 
 @pytest.fixture

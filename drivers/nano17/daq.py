@@ -66,8 +66,7 @@ class DaqSensor(ForceSensor):
         load = self._load(gauges)
         if not all(map(math.isfinite, load)):
             flags |= SAMPLE_INVALID
-        elif any(abs(v) >= RAIL_FRACTION * self.source.rail_v for v in gauges) or any(
-                abs(value) > limit for value, limit in zip(load, self._ranges)):
+        elif self._saturated(gauges, load):
             flags |= SAMPLE_SATURATED
         b = self._bias_load
         return ForceSample(now, (load[0] - b[0], load[1] - b[1], load[2] - b[2]),
@@ -81,6 +80,17 @@ class DaqSensor(ForceSensor):
             v0, v1, v2, v3, v4, v5 = volts
             return [r[0] * v0 + r[1] * v1 + r[2] * v2 + r[3] * v3 + r[4] * v4 + r[5] * v5 for r in self._rows]
         return [sum(m * v for m, v in zip(row, volts)) for row in self._rows]
+
+    def _saturated(self, gauges, load) -> bool:
+        """A gauge near the DAQ's rail, or a load beyond the calibrated range (plain loops: every tick)."""
+        rail = RAIL_FRACTION * self.source.rail_v
+        for v in gauges:
+            if v >= rail or v <= -rail:
+                return True
+        for value, limit in zip(load, self._ranges):
+            if value > limit or value < -limit:
+                return True
+        return False
 
     def _staleness(self, device_t: float, now: float) -> int:
         if device_t != self._last_device_t:

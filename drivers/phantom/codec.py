@@ -15,14 +15,15 @@ HEADER = struct.Struct("<2sBBH")  # sync, type, payload length, sequence
 CRC = struct.Struct("<H")
 OVERHEAD_BYTES = HEADER.size + CRC.size
 
-COMMAND = 0x01  # host -> bridge: amplifiers, three motor currents, watchdog period
+COMMAND = 0x01  # host -> bridge: amplifiers, three motor currents, the hold currents, watchdog timings
 READ = 0x02  # host -> bridge: only ask for the state
 STATE = 0x81  # bridge -> host: encoder counts, status, device time, which host frame it answers
 
 FLAG_ENABLE = 0x01  # amplifiers on
 FLAG_CLEAR_FAULTS = 0x02  # clear a latched watchdog trip (only honoured together with FLAG_ENABLE)
 
-COMMAND_PAYLOAD = struct.Struct("<BH3h")  # flags, watchdog ms (0 = keep), currents in mA
+# flags, watchdog ms (0 = keep), hold after us (0 = keep), hold ramp us (0 = keep), currents, hold currents (mA)
+COMMAND_PAYLOAD = struct.Struct("<BHHH3h3h")
 STATE_PAYLOAD = struct.Struct("<3iBIHH")  # counts, status, device time in us (wraps), ack sequence, rx errors
 PAYLOAD_BYTES = {COMMAND: COMMAND_PAYLOAD.size, READ: 0, STATE: STATE_PAYLOAD.size}
 MAX_CURRENT_MA = 32767
@@ -44,6 +45,9 @@ class Command:
     clear_faults: bool
     watchdog_ms: int
     currents_ma: tuple[int, int, int]
+    hold_after_us: int = 0  # host silence after which the bridge ramps to hold_ma (0 keeps the bridge's)
+    hold_ramp_us: int = 0  # how long that ramp takes (0 keeps the bridge's)
+    hold_ma: tuple[int, int, int] = (0, 0, 0)  # what a silent host leaves on: gravity compensation at this pose
 
 
 @dataclass(frozen=True, slots=True)
@@ -74,10 +78,10 @@ def _clamp_ma(current: int) -> int:
 
 
 def encode_command(seq: int, command: Command) -> bytes:
-    flags = (FLAG_ENABLE if command.enable else 0) | (FLAG_CLEAR_FAULTS if command.clear_faults else 0)
     i0, i1, i2 = command.currents_ma
-    return _sealed(_COMMAND_BODY.pack(SYNC, COMMAND, COMMAND_PAYLOAD.size, seq & 0xFFFF, flags, command.watchdog_ms,
-                                      _clamp_ma(int(i0)), _clamp_ma(int(i1)), _clamp_ma(int(i2))))
+    h0, h1, h2 = command.hold_ma
+    return encode_command_values(seq, command.enable, command.clear_faults, command.watchdog_ms, command.hold_after_us,
+                                 command.hold_ramp_us, int(i0), int(i1), int(i2), int(h0), int(h1), int(h2))
 
 
 def encode_state(seq: int, state: State) -> bytes:
@@ -87,14 +91,41 @@ def encode_state(seq: int, state: State) -> bytes:
                                     state.rx_errors & 0xFFFF))
 
 
+def encode_command_values(seq: int, enable: bool, clear_faults: bool, watchdog_ms: int, hold_after_us: int,
+                          hold_ramp_us: int, i0: int, i1: int, i2: int, h0: int, h1: int, h2: int) -> bytes:
+    """encode_command without building a Command: the host sends one every servo tick."""
+    flags = (FLAG_ENABLE if enable else 0) | (FLAG_CLEAR_FAULTS if clear_faults else 0)
+    c = _clamp_ma
+    return _sealed(_COMMAND_BODY.pack(SYNC, COMMAND, COMMAND_PAYLOAD.size, seq & 0xFFFF, flags, watchdog_ms,
+                                      hold_after_us, hold_ramp_us, c(i0), c(i1), c(i2), c(h0), c(h1), c(h2)))
+
+
 def decode_command(payload: bytes) -> Command:
-    flags, watchdog_ms, *currents = COMMAND_PAYLOAD.unpack(payload)
-    return Command(bool(flags & FLAG_ENABLE), bool(flags & FLAG_CLEAR_FAULTS), watchdog_ms, tuple(currents))
+    flags, watchdog_ms, hold_after_us, hold_ramp_us, i0, i1, i2, h0, h1, h2 = COMMAND_PAYLOAD.unpack(payload)
+    return Command(bool(flags & FLAG_ENABLE), bool(flags & FLAG_CLEAR_FAULTS), watchdog_ms, (i0, i1, i2),
+                   hold_after_us, hold_ramp_us, (h0, h1, h2))
 
 
 def decode_state(payload: bytes) -> State:
     c1, c2, c3, status, time_us, ack, errors = STATE_PAYLOAD.unpack(payload)
     return State((c1, c2, c3), status, time_us, ack, errors)
+
+
+_STATE_FRAME = struct.Struct(_STATE_BODY.format + "H")  # a whole STATE frame, CRC included
+STATE_FRAME_BYTES = _STATE_FRAME.size
+
+
+def parse_state_frame(data: bytes) -> tuple[int, State] | None:
+    """(sequence, State) if data is exactly one valid STATE frame, else None (then use a FrameDecoder).
+
+    The host's fast path: one reply per exchange almost always arrives whole and alone."""
+    if len(data) != STATE_FRAME_BYTES:
+        return None
+    sync, kind, length, seq, c0, c1, c2, status, time_us, ack, errors, crc = _STATE_FRAME.unpack(data)
+    if sync != SYNC or kind != STATE or length != STATE_PAYLOAD.size \
+            or crc != binascii.crc_hqx(data[2:STATE_FRAME_BYTES - CRC.size], 0xFFFF):
+        return None
+    return seq, State((c0, c1, c2), status, time_us, ack, errors)
 
 
 class FrameDecoder:
@@ -104,6 +135,11 @@ class FrameDecoder:
         self._buffer = bytearray()
         self.discarded_bytes = 0
         self.rejected_frames = 0
+
+    @property
+    def pending(self) -> bool:
+        """Bytes of an unfinished frame are waiting for the rest."""
+        return bool(self._buffer)
 
     def feed(self, data: bytes) -> list[Frame]:
         frames: list[Frame] = []

@@ -19,6 +19,9 @@ NOMINAL_CURRENT_A = 1.24
 PEAK_CURRENT_A = 5.5
 # Joint ranges of the 1.5A, generous enough for its published workspace.
 JOINT_LIMITS_RAD = ((-1.0, 1.0), (-0.6, 1.2), (-0.6, 1.2))
+HOME_Q = (0.0, 0.0, 0.0)  # where the arm rests in its stand at power-up (the calibration pose)
+# Each joint's link plus reflected rotor inertia (the coupling between joints is small on this arm).
+JOINT_INERTIA_KG_M2 = (3.0e-3, 2.5e-3, 1.5e-3)
 
 # Lumped gravity model: link-1 mass at its midpoint, link-2 and tip mass at the tip.
 # The real arm is counterbalanced; these are the residual, uncompensated masses.
@@ -63,6 +66,18 @@ def joint_torques(q: Vec3, force_n: Vec3) -> Vec3:
         j[0][1] * fx + j[1][1] * fy + j[2][1] * fz,
         j[0][2] * fx + j[1][2] * fy + j[2][2] * fz,
     )
+
+
+def lightest_tip_mass_kg(q: Vec3) -> float:
+    """The smallest mass the tip presents along any one joint's motion at q: I_j / |dp/dq_j|^2.
+
+    J's columns have lengths reach, L1 and L2 (reach = the tip's distance from the base axis), so
+    this is cheap enough to ask on a late tick.
+    """
+    _, t2, t3 = q
+    reach = L1_M * math.cos(t2) + L2_M * math.sin(t3)
+    i1, i2, i3 = JOINT_INERTIA_KG_M2
+    return min(i1 / max(reach * reach, 1e-6), i2 / (L1_M * L1_M), i3 / (L2_M * L2_M))
 
 
 def tip_velocity(q: Vec3, qdot: Vec3) -> Vec3:
@@ -126,16 +141,16 @@ def torque_per_amp(joint: int) -> float:
     return CAPSTAN_RATIO[joint] * MOTOR_KT_NM_PER_A
 
 
-def torques_to_currents(tau: Vec3, limit_a: float = PEAK_CURRENT_A) -> Vec3:
-    """Motor currents for joint torques, clamped to +-limit_a."""
-    out = []
-    for joint, torque in enumerate(tau):
-        amps = torque / torque_per_amp(joint)
-        out.append(limit_a if amps > limit_a else -limit_a if amps < -limit_a else amps)
-    return tuple(out)  # type: ignore[return-value]
-
-
 _NM_PER_A = tuple(torque_per_amp(joint) for joint in range(3))
+_A0, _A1, _A2 = (1.0 / nm for nm in _NM_PER_A)
+
+
+def torques_to_currents(tau: Vec3, limit_a: float = PEAK_CURRENT_A) -> Vec3:
+    """Motor currents for joint torques, clamped to +-limit_a (unrolled: twice every servo tick)."""
+    a0, a1, a2 = tau[0] * _A0, tau[1] * _A1, tau[2] * _A2
+    return (limit_a if a0 > limit_a else -limit_a if a0 < -limit_a else a0,
+            limit_a if a1 > limit_a else -limit_a if a1 < -limit_a else a1,
+            limit_a if a2 > limit_a else -limit_a if a2 < -limit_a else a2)
 
 
 def currents_to_torques(currents: Vec3) -> Vec3:
@@ -173,6 +188,20 @@ def _times(m, v: Vec3) -> Vec3:
         m[1][0] * v[0] + m[1][1] * v[1] + m[1][2] * v[2],
         m[2][0] * v[0] + m[2][1] * v[1] + m[2][2] * v[2],
     )
+
+
+class SensorTilt:
+    """tilt_to_base for one q_aligned, with the aligned pose's rotation worked out once (the servo's per-tick form)."""
+
+    def __init__(self, q_aligned: Vec3) -> None:
+        self._aligned = link2_rotation(q_aligned)
+
+    def to_base(self, q: Vec3, v: Vec3) -> Vec3:
+        return _times(link2_rotation(q), _transpose_times(self._aligned, v))
+
+    def from_base(self, q: Vec3, v: Vec3) -> Vec3:
+        """What the tilted sensor reads of a vector v given in base axes (base_to_tilt)."""
+        return _times(self._aligned, _transpose_times(link2_rotation(q), v))
 
 
 def tilt_to_base(q: Vec3, q_aligned: Vec3, v: Vec3) -> Vec3:
@@ -214,16 +243,19 @@ class ThermalLimit:
 
     def limit(self, currents_a: Vec3, dt_s: float) -> Vec3:
         """Clamp each current to the peak, or to nominal once that joint's budget is spent; then account."""
-        out = []
-        for joint, amps in enumerate(currents_a):
-            cap = self.nominal_a if self.heat_a2s[joint] >= self.budget_a2s else self.peak_a
-            if amps != amps:  # NaN: no current rather than an undefined one
-                amps = 0.0
-            amps = cap if amps > cap else -cap if amps < -cap else amps
-            heat = self.heat_a2s[joint] + (amps * amps - self.nominal_a * self.nominal_a) * dt_s
-            self.heat_a2s[joint] = min(max(heat, 0.0), self.budget_a2s)
-            out.append(amps)
-        return tuple(out)  # type: ignore[return-value]
+        heat = self.heat_a2s
+        return (self._joint(0, currents_a[0], dt_s, heat), self._joint(1, currents_a[1], dt_s, heat),
+                self._joint(2, currents_a[2], dt_s, heat))
+
+    def _joint(self, joint: int, amps: float, dt_s: float, heat: list) -> float:
+        budget = self.budget_a2s
+        cap = self.nominal_a if heat[joint] >= budget else self.peak_a
+        if amps != amps:  # NaN: no current rather than an undefined one
+            amps = 0.0
+        amps = cap if amps > cap else -cap if amps < -cap else amps
+        warmer = heat[joint] + (amps * amps - self.nominal_a * self.nominal_a) * dt_s
+        heat[joint] = budget if warmer > budget else 0.0 if warmer < 0.0 else warmer
+        return amps
 
     def limited(self) -> bool:
         return any(h >= self.budget_a2s for h in self.heat_a2s)

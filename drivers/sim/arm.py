@@ -9,7 +9,7 @@ import math
 
 from drivers.phantom import model
 
-JOINT_INERTIA_KG_M2 = (3.0e-3, 2.5e-3, 1.5e-3)
+JOINT_INERTIA_KG_M2 = model.JOINT_INERTIA_KG_M2
 VISCOUS_NM_S = (2.0e-3, 2.0e-3, 1.5e-3)
 COULOMB_NM = (2.0e-3, 2.0e-3, 2.0e-3)
 COULOMB_SMOOTHING_RAD_S = 0.01  # keeps Coulomb friction continuous through zero speed

@@ -29,7 +29,8 @@ class SimRobot(Robot):
         counts = world.encoder_counts()
         return JointState(world.t_s, counts, model.counts_to_angles(counts), world.status())
 
-    def write(self, currents_a: model.Vec3) -> None:
+    def write(self, currents_a: model.Vec3, hold_a: model.Vec3 | None = None) -> None:
+        """No watchdog on this direct path (it has no wire to go quiet): hold_a is not used."""
         if self.world.amplifiers_on:
             self.world.currents_a = currents_a
 

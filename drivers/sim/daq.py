@@ -7,6 +7,7 @@ side runs the same calibration code as on the bench.
 from __future__ import annotations
 
 import random
+import time
 from pathlib import Path
 
 import numpy as np
@@ -39,11 +40,13 @@ class SimDaq(GaugeSource):
         self._codes: tuple[float, ...] = ()
 
     def read_voltages(self) -> tuple[float, tuple[float, ...]]:
+        started = time.perf_counter()
         world = self.world
         world.advance_to(world.clock.now())
         t_s, load = world.sensor_reading()
         if not (world.faults.sensor_frozen and self._codes):  # frozen: the same codes, freshly stamped
             self._codes = self._digitise(load)
+        world.cpu_s += time.perf_counter() - started  # the device's share of the host's tick
         return t_s, self._codes
 
     def _digitise(self, load) -> tuple[float, ...]:

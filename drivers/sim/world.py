@@ -1,6 +1,14 @@
-"""The simulated bench: arm, tissue and sensor advancing together on one clock."""
+"""The simulated bench: arm, tissue and sensor advancing together on one clock.
+
+The world keeps the truth the host cannot see: the contact force at every
+physics step (its peak is what the tissue really took, whatever the host's
+samples say). With its amplifiers off the arm falls under gravity, except in
+its stand at home, where the real Phantom is parked at power-up and where a
+controlled stop leaves it.
+"""
 from __future__ import annotations
 
+import math
 import random
 
 from drivers.geometry import TissueFrame, rotate_xy
@@ -14,6 +22,9 @@ from drivers.sim.tissue import StiffnessField, hunt_crossley_n
 
 PHYSICS_STEP_S = 0.0005
 NO_FORCE = (0.0, 0.0, 0.0)
+HOME_Q = model.HOME_Q
+STAND_CAPTURE_MM = 3.0  # powered off this close to home, the arm settles into its stand
+_HOME = list(HOME_Q)
 
 
 class SimWorld:
@@ -24,31 +35,76 @@ class SimWorld:
         self.clock = clock
         self.frame = TissueFrame(tuple(v / 1000.0 for v in scene.placement.origin_mm))
         self.q_aligned = model.inverse(self.frame.to_robot((0.0, 0.0, 0.0)))
+        self._tilt = model.SensorTilt(self.q_aligned)
         self.field = StiffnessField(scene)
         rng = random.Random(hash((scene.seed, seed)) & 0xFFFFFFFF)
         self.sensor = SimNano17(scene.sensor.noise_n, scene.sensor.bias_n, rng)
         self.arm = SimArm()
         self.t_s = clock.now()
         self.currents_a: model.Vec3 = NO_FORCE
-        self.amplifiers_on = False
+        self._amplifiers_on = False
+        self.in_stand = True  # parked at home, as at power-up: the stand holds it while unpowered
         self.estop = False
         self.contact_force_robot: model.Vec3 = NO_FORCE
+        self.contact_force_n = 0.0  # normal force the tissue takes now
+        self.max_contact_force_n = 0.0  # its peak over every physics step (reset_peak() starts afresh)
         self.faults = SimFaults(scene.faults, self.t_s)  # fault injection: the scene's [faults], and tests
         self.hand = None  # when set, a person moves the arm: hand.q_at(t_s) overrides the dynamics
+        self.step_hook = None  # called after every physics step (tests and benchmarks watch the truth here)
+        self.cpu_s = 0.0  # CPU time spent simulating the devices (the bridge's and the DAQ's side), for benchmarks
         self._rotation_deg = scene.placement.rotation_deg
         self._tissue = scene.tissue
 
     # -- device side -------------------------------------------------------------------------
+    @property
+    def amplifiers_on(self) -> bool:
+        return self._amplifiers_on
+
+    @amplifiers_on.setter
+    def amplifiers_on(self, on: bool) -> None:
+        """Powered, the motors lift the arm out of its stand; unpowered near home, it settles back in."""
+        self._amplifiers_on = on
+        self.in_stand = not on and self.hand is None and self._near_home()
+        if self.in_stand:
+            self.arm.q, self.arm.qd = list(HOME_Q), [0.0, 0.0, 0.0]
+            self.contact_force_robot, self.contact_force_n = NO_FORCE, 0.0
+
     def advance_to(self, t_s: float) -> None:
+        if self.in_stand and self.hand is None and self.arm.q == _HOME:  # parked, unpowered: only time passes
+            steps = int((t_s + 1e-12 - self.t_s) / PHYSICS_STEP_S)
+            self.t_s += max(steps, 0) * PHYSICS_STEP_S
+            return
         while self.t_s + PHYSICS_STEP_S <= t_s + 1e-12:
-            self._step(PHYSICS_STEP_S)
-            self.t_s += PHYSICS_STEP_S
+            self.step()
+        if t_s - self.t_s > 1e-9:  # on the wall clock: the rest of the way, so a reading is never a step old
+            self.step(t_s - self.t_s)
+
+    def step(self, dt_s: float = PHYSICS_STEP_S) -> None:
+        """One physics step."""
+        self._step(dt_s)
+        self.t_s += dt_s
+        if self.step_hook is not None:
+            self.step_hook(self)
+
+    def reset_peak(self) -> float:
+        """The true peak contact force so far, and start a new one."""
+        peak, self.max_contact_force_n = self.max_contact_force_n, self.contact_force_n
+        return peak
+
+    def tip_mm(self) -> model.Vec3:
+        """Where the tip truly is, in the tissue frame."""
+        x, y, z = self.frame.from_robot(model.forward(tuple(self.arm.q)))  # type: ignore[arg-type]
+        return (1000.0 * x, 1000.0 * y, 1000.0 * z)
+
+    def _near_home(self) -> bool:
+        home = model.forward(HOME_Q)
+        return 1000.0 * math.dist(model.forward(tuple(self.arm.q)), home) <= STAND_CAPTURE_MM  # type: ignore[arg-type]
 
     def press_estop(self) -> None:
         """The red button on the bench: the amplifiers drop at once, whatever the host says."""
         self.estop = True
-        self.amplifiers_on = False
         self.currents_a = NO_FORCE
+        self.amplifiers_on = False
 
     def status(self) -> int:
         bits = (STATUS_AMPLIFIERS_ON if self.amplifiers_on else 0) | (STATUS_ESTOP if self.estop else 0)
@@ -74,7 +130,7 @@ class SimWorld:
     def _force_on_sensor(self) -> model.Vec3:
         force = self.contact_force_robot
         if self.scene.sensor.tilt:
-            force = model.base_to_tilt(tuple(self.arm.q), self.q_aligned, force)  # type: ignore[arg-type]
+            force = self._tilt.from_base(tuple(self.arm.q), force)  # type: ignore[arg-type]
         return self.frame.vector_from_robot(force)
 
     # -- physics -----------------------------------------------------------------------------
@@ -88,8 +144,12 @@ class SimWorld:
         q = tuple(self.arm.q)
         force = self._contact_force(q)
         self.contact_force_robot = force
+        normal_n = force[1]  # the tissue's normal is the robot's y axis
+        self.contact_force_n = normal_n
+        if normal_n > self.max_contact_force_n:
+            self.max_contact_force_n = normal_n
         tau_external = model.joint_torques(q, force) if force is not NO_FORCE else NO_FORCE
-        tau_motor = model.currents_to_torques(self.currents_a) if self.amplifiers_on else NO_FORCE
+        tau_motor = model.currents_to_torques(self.currents_a) if self._amplifiers_on else NO_FORCE
         if self.hand is not None:
             self.arm.q = list(self.hand.q_at(self.t_s + dt))
         else:

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import importlib
 
-BENCHMARKS: list[str] = ["loop", "learner", "tradeoff", "drivers", "hotpath"]
+BENCHMARKS: list[str] = ["loop", "stall", "learner", "tradeoff", "drivers", "hotpath"]
 
 
 def add_parser(subparsers):

@@ -18,6 +18,7 @@ class ForceReader:
         self.axes = axes
         self.sensor_tilts = sensor_tilts
         self.q_aligned = q_aligned
+        self._tilt = model.SensorTilt(q_aligned)
         self.bias_n: Vec3 = (0.0, 0.0, 0.0)
 
     def tare(self, samples: list[ForceSample]) -> None:
@@ -30,7 +31,7 @@ class ForceReader:
         unbiased = (f[0] - b[0], f[1] - b[1], f[2] - b[2])
         if not self.sensor_tilts:
             return unbiased  # a level sensor's axes are the tissue's
-        in_base = model.tilt_to_base(q, self.q_aligned, TissueFrame.vector_to_robot(unbiased))
+        in_base = self._tilt.to_base(q, TissueFrame.vector_to_robot(unbiased))
         return TissueFrame.vector_from_robot(in_base)
 
     def normal_force(self, sample: ForceSample, q: Vec3, tissue_force: Vec3) -> float:

@@ -54,10 +54,11 @@ class Palpation:
         self.done = False
 
     def step(self, tick) -> Vec3:
-        dt = 0.0 if self._last_t is None else tick.t_s - self._last_t
+        # Setpoints advance on the servo's tick clock: a stalled host pauses the press instead of deepening it.
+        dt = 0.0 if self._last_t is None else tick.motion_t_s - self._last_t
         if self._last_t is None:
             self.record.t_first_tick_s = tick.t_s
-        self._last_t = tick.t_s
+        self._last_t = tick.motion_t_s
         found = self.segmenter.push(tick.t_s, tick.tip_mm, tick.normal_force_n)
         if found is not None and self._segment is None:
             self._segment = found
@@ -84,7 +85,7 @@ class Palpation:
         if depth >= self.s.depth_mm or tick.normal_force_n >= self.s.max_force_n:
             reason = "depth" if depth >= self.s.depth_mm else "force"
             if self.s.hold_s > 0:
-                self._phase, self._hold_until, self.record.stop_reason = "hold", tick.t_s + self.s.hold_s, reason
+                self._phase, self._hold_until, self.record.stop_reason = "hold", tick.motion_t_s + self.s.hold_s, reason
             else:
                 self._start_retract(tick, reason)
             return self._setpoint()
@@ -99,7 +100,7 @@ class Palpation:
         return self.s.speed_mm_s * (1.0 + SPEED_SWING * math.sin(2.0 * math.pi * SPEED_CYCLES * progress))
 
     def _hold(self, tick, dt) -> Vec3:
-        if tick.t_s >= self._hold_until:
+        if tick.motion_t_s >= self._hold_until:
             self._start_retract(tick, self.record.stop_reason)
         return self._setpoint()
 

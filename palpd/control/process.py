@@ -92,7 +92,7 @@ class ServoProcess:
         except (EOFError, BrokenPipeError, ConnectionResetError):
             return  # the parent is gone: stop, motors off
         finally:
-            self.servo.stop()
+            self._faulted(self.servo.stop)  # parked at the rest pose before power-off, even when the parent is gone
             self.servo.robot.close()
             self.servo.sensor.close()
 
@@ -114,9 +114,9 @@ class ServoProcess:
         if command == "run":
             payload, kind = self._run(*args)
         elif command == "start":
-            servo.start()
+            payload = self._faulted(servo.start)
         elif command == "stop":
-            servo.stop()
+            payload = self._faulted(servo.stop)
         elif command == "reset":
             servo.reset()
         elif command == "tare":
@@ -143,11 +143,23 @@ class ServoProcess:
         finally:
             self._task_running = False
 
+    def _faulted(self, action):
+        """Run a motion (start homes, stop parks) as a task: None, or the fault's message if safety stopped it."""
+        self._task_running = True
+        try:
+            action()
+        except ScanFault as exc:
+            return str(exc)
+        finally:
+            self._task_running = False
+        return None
+
     def _state(self) -> dict:
         servo, world = self.servo, self.bench.world
         return {"fault": servo.fault, "last_tick": servo.last_tick, "max_contact_force_n": servo.max_contact_force_n,
                 "motors_on": servo.motors_on, "bias_n": servo.forces.bias_n, "sensor": servo.health.summary(),
-                "amplifiers_on": world.amplifiers_on if world is not None else None}
+                "amplifiers_on": world.amplifiers_on if world is not None else None,
+                "true_max_contact_force_n": servo.true_max_contact_force_n}
 
 
 def _exit_on_signal(signum, frame) -> None:

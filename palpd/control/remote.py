@@ -109,6 +109,7 @@ class RemoteServo:
         self.fault: Fault | None = None
         self.last_tick = None
         self.max_contact_force_n = 0.0
+        self.true_max_contact_force_n: float | None = None
         self.motors_on = False
         self.amplifiers_on = None
         self.period_s = 0.001
@@ -121,15 +122,21 @@ class RemoteServo:
         return self.process.pid
 
     def start(self) -> None:
-        self.call("start")
+        """Amplifiers on and the arm home, supervised; raises ScanFault if safety stopped the homing."""
+        stopped_by = self.call("start")
+        if stopped_by is not None:
+            raise ScanFault(stopped_by)
 
     def stop(self) -> None:
-        """Motors off; a dead child's motors are already without current (the bridge watchdog)."""
+        """Park at the rest pose, then motors off; raises ScanFault if safety stopped the park. A dead
+        child's arm is already in the bridge watchdog's gravity hold."""
         if self.process.is_alive() and not self._closed:
             try:
-                self.call("stop")
+                stopped_by = self.call("stop")
             except ScanFault:
-                pass
+                return
+            if stopped_by is not None:
+                raise ScanFault(stopped_by)
 
     def reset(self) -> None:
         self.ring.set_estop(False)
@@ -226,6 +233,7 @@ class RemoteServo:
         self.max_contact_force_n, self.motors_on = state["max_contact_force_n"], state["motors_on"]
         self.forces.bias_n, self.amplifiers_on = state["bias_n"], state["amplifiers_on"]
         self.health.last = state["sensor"]
+        self.true_max_contact_force_n = state["true_max_contact_force_n"]
 
     def _lost(self, why: str):
         """The child is gone or hung: kill it (the bridge watchdog cuts the current), latch, raise."""

@@ -15,15 +15,16 @@ from multiprocessing import shared_memory
 import numpy as np
 
 CAPACITY = 1 << 14  # samples: 16 s at 1 kHz
-# write_index, heartbeat, ticks, overruns, estop, now_s
-_HEADER = struct.Struct("<QQQQQd")
+# write_index, heartbeat, ticks, overruns, now_s (the producer's, written in one call), estop (the parent's)
+_HEADER = struct.Struct("<QQQQdQ")
+_BEAT_FIELDS = struct.Struct("<QQQd")
 _SAMPLE = struct.Struct("<d3d3d3ddII")
 SAMPLE_DTYPE = np.dtype([("t_s", "<f8"), ("q_rad", "<f8", 3), ("tip_mm", "<f8", 3), ("force_n", "<f8", 3),
                          ("normal_force_n", "<f8"), ("status", "<u4"), ("flags", "<u4")])
 assert SAMPLE_DTYPE.itemsize == _SAMPLE.size
 HEADER_BYTES = 64
 FLAG_MOTORS_ON, FLAG_FAULT, FLAG_TASK = 1, 2, 4
-_INDEX, _BEAT, _TICKS, _OVERRUNS, _ESTOP, _NOW = (8 * i for i in range(6))
+_INDEX, _BEAT, _TICKS, _OVERRUNS, _NOW, _ESTOP = (8 * i for i in range(6))
 
 
 class SampleRing:
@@ -33,6 +34,7 @@ class SampleRing:
         self.capacity = (memory.size - HEADER_BYTES) // _SAMPLE.size
         self._slots = np.ndarray((self.capacity,), SAMPLE_DTYPE, self._buffer, HEADER_BYTES)
         self._index = 0
+        self._beats = 0
 
     @classmethod
     def create(cls, capacity: int = CAPACITY) -> "SampleRing":
@@ -61,9 +63,8 @@ class SampleRing:
         struct.pack_into("<Q", self._buffer, _INDEX, i + 1)
 
     def beat(self, now_s: float, ticks: int, overruns: int) -> None:
-        beat = struct.unpack_from("<Q", self._buffer, _BEAT)[0]
-        struct.pack_into("<QQQ", self._buffer, _BEAT, beat + 1, ticks, overruns)
-        struct.pack_into("<d", self._buffer, _NOW, now_s)
+        self._beats += 1
+        _BEAT_FIELDS.pack_into(self._buffer, _BEAT, self._beats, ticks, overruns, now_s)
 
     def is_set(self) -> bool:
         """The e-stop input (the loop polls it like a threading.Event)."""
@@ -75,7 +76,7 @@ class SampleRing:
         struct.pack_into("<Q", self._buffer, _ESTOP, 1 if on else 0)
 
     def header(self) -> dict:
-        index, beat, ticks, overruns, estop, now_s = _HEADER.unpack_from(self._buffer, 0)
+        index, beat, ticks, overruns, now_s, estop = _HEADER.unpack_from(self._buffer, 0)
         return {"written": index, "heartbeat": beat, "ticks": ticks, "overruns": overruns,
                 "estop": bool(estop), "now_s": now_s}
 

@@ -114,7 +114,9 @@ def reset(sup, command) -> None:
         sup.commands.reply(command, state=sup.state, restarting=True)
         return
     sup.bench.servo.reset()  # clears the e-stop input and the latched fault in the servo process
-    sup.set_state("ready", "fault cleared")
+    sup.job = lambda worker: worker.home()  # from wherever the stop left the arm, supervised; ready when parked
+    sup.worker.submit(sup.job)
+    sup.set_state("configure", "fault cleared: bringing the arm home")
     sup.commands.reply(command, state=sup.state)
 
 

@@ -120,3 +120,4 @@ class RestartServoJob:
             raise ScanFault(str(exc)) from None
         lost.servo.close()  # its shared memory and pipe; the process is gone already
         worker.bench = self.bench = bench
+        worker.home()  # the arm floats in the bridge's hold where the lost one left it: take it home

@@ -66,8 +66,15 @@ class ScanWorker(threading.Thread):
                 if job is not None:
                     self._run_job(job)
         finally:
-            self.bench.servo.stop()  # amplifiers off whatever happened (a lost servo process is off already)
+            self._park()  # amplifiers off whatever happened (a lost servo process's bridge holds the arm)
             self.out.close(linger=1000)
+
+    def _park(self) -> None:
+        """The servo parks the arm at its rest pose and powers off; a fault on the way is latched there."""
+        try:
+            self.bench.servo.stop()
+        except ScanFault:
+            pass
 
     def _run_job(self, job) -> None:
         fault = None
@@ -76,7 +83,7 @@ class ScanWorker(threading.Thread):
         except ScanFault:
             pass
         except Exception as exc:  # a bug in a job must not kill the thread that owns the robot
-            self.bench.servo.stop()
+            self._park()
             self.send({"kind": "job_end", "fault": {"code": "internal", "message": repr(exc)[:300]}})
             return
         if self.bench.servo.fault is not None:
@@ -93,6 +100,11 @@ class ScanWorker(threading.Thread):
 
     def scan(self, settings, planner, on_probe) -> dict:
         return run_scan(self.bench, settings, StoppablePlan(planner, self.stop_requested), on_probe)
+
+    def home(self) -> None:
+        """Bring the arm to its rest pose (start() homes it, supervised) and power off there."""
+        self.bench.servo.start()
+        self.bench.servo.stop()
 
     def tare(self) -> None:
         p, servo = self.settings.palpation, self.bench.servo
