@@ -17,8 +17,10 @@ run: $(BIN)/palpd
 	$(BIN)/palpd scan --scene config/scenes/paper.toml --strategy active \
 		--report $(OUT)/paper-report.json --plot $(OUT)/paper-map.png
 
+# Two workers: the suite's scans, daemons and subprocesses spend most of their time in one Python each;
+# module fixtures stay on one worker (loadscope).
 test: $(BIN)/palpd
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n 2 --dist loadscope
 
 reproduce: $(BIN)/palpd
 	$(BIN)/python scripts/reproduce.py

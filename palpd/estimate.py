@@ -13,10 +13,6 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
-from scipy.cluster.hierarchy import fcluster, linkage
-from scipy.spatial import cKDTree
-from sklearn.svm import SVC
 
 CONTRAST_P_VALUE = 1e-3
 BOUNDARY_VERTICES = 48
@@ -105,6 +101,8 @@ def _one_lump(xy: np.ndarray, is_lump: np.ndarray, group: np.ndarray, spacing: f
 def _svm_radius(distance: np.ndarray, is_lump: np.ndarray, spacing: float) -> float:
     """The distance at which a linear SVM separates lump points from the rest (paper §3.4)."""
     # In units of the probe spacing the margin is order one, so a hard-ish C gives the max-margin midpoint.
+    from sklearn.svm import SVC  # here: sklearn costs a scan process a third of a second to import
+
     scale = spacing
     svm = SVC(kernel="linear", C=1e4).fit((distance / scale)[:, None], is_lump.astype(int))
     return float(-svm.intercept_[0] / svm.coef_[0, 0] * scale)
@@ -125,6 +123,7 @@ def _best_two_group_split(sorted_k: np.ndarray) -> int:
 
 
 def _groups_differ(low: np.ndarray, high: np.ndarray) -> bool:
+    from scipy import stats  # here: scipy.stats costs every process that imports palpd.estimate half a second
     if high.size >= 2 and low.size >= 2:
         if np.ptp(low) == 0 and np.ptp(high) == 0:
             return bool(high[0] != low[0])
@@ -138,6 +137,8 @@ def _groups_differ(low: np.ndarray, high: np.ndarray) -> bool:
 def _typical_spacing(xy: np.ndarray) -> float:
     if len(xy) < 2:
         return 1.0
+    from scipy.spatial import cKDTree
+
     distances, _ = cKDTree(xy).query(xy, k=2)
     return float(np.median(distances[:, 1])) or 1.0
 
@@ -145,5 +146,7 @@ def _typical_spacing(xy: np.ndarray) -> float:
 def _connected_groups(points: np.ndarray, link_mm: float) -> list[np.ndarray]:
     if len(points) == 1:
         return [points]
+    from scipy.cluster.hierarchy import fcluster, linkage  # here: scipy.cluster imports scipy.stats (slow)
+
     labels = fcluster(linkage(points, method="single"), t=link_mm, criterion="distance")
     return [points[labels == label] for label in np.unique(labels)]

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.special import ndtri
-from scipy.stats import qmc
 
 from palpd.learner import shapes
 from palpd.learner.describe import quantities
@@ -29,6 +28,8 @@ def initial_design(size_mm: tuple[float, float], count: int, seed: int) -> list[
     if count <= 0:
         return []
     half = np.asarray(size_mm, dtype=float) / 2.0
+    from scipy.stats import qmc  # here: scipy.stats takes half a second to import, for one design per scan
+
     unit = qmc.Halton(d=2, scramble=True, seed=seed).random(count)
     points = qmc.scale(unit, -half, half)
     return _tour(points, start=np.zeros(2))
