@@ -24,6 +24,7 @@ def add_parser(subparsers):
 
 def run(args) -> int:
     import signal
+    import sys
     import threading
 
     from palpd.shipped import load_scene_named
@@ -39,6 +40,12 @@ def run(args) -> int:
     except OSError as exc:
         host.close()
         raise PalpdError(f"cannot serve the simulated bench: {exc.strerror or exc}") from None
+    # The simulated bench stands in for hardware that keeps its own time (the bridge's microcontroller, the
+    # Net F/T box): it runs as real-time as this machine permits, so a busy host delays palpd, not the robot.
+    from palpd.control.realtime import prepare_realtime
+
+    for note in prepare_realtime():
+        print(f"palpd simulate: {note}", file=sys.stderr, flush=True)
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
