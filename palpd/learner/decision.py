@@ -30,7 +30,9 @@ class Decision:
     """Mixed into Learner: needs choice, hypotheses, obs, gp, settings, grid and probe bookkeeping."""
 
     def chosen_fit(self) -> Fit | None:
-        return None if self.choice is None else self.hypotheses.fits.get(self.choice.chosen)
+        """The chosen parametric fit, its covariance checked against the posterior (posterior.py):
+        what is reported, what the stop rule reads and what the next probe is to shrink."""
+        return None if self.choice is None else self.hypotheses.checked(self.choice.chosen, self.obs)
 
     def model(self) -> dict | None:
         """{chosen, weight, runner_up} of the scan report and the estimate event."""

@@ -162,7 +162,7 @@ class Learner(Decision):
         if self.choice is None:
             return None
         if "grid" not in self._cache:
-            fit = self.hypotheses.fits.get(self.choice.chosen)
+            fit = self.chosen_fit()
             if fit is not None and fit.family.k:
                 self._cache["grid"] = maps.parametric(fit, self.xs, self.ys, self.grid_xy)
             else:
