@@ -23,7 +23,6 @@ MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model'
 MIN_WEIGHT = 0.01  # hypotheses below this weight are left out of the disagreement
 MAX_RIVALS = 4
 CANDIDATE_STRIDE_MM = 1.0  # probes are chosen on a lattice at least this fine
-COVERAGE_STEP_MM = 2.0  # how finely the unexplored spots are looked for
 
 
 class Decision:
@@ -76,14 +75,7 @@ class Decision:
     def _unexplored(self) -> tuple[float, float] | None:
         """The spot farthest from every reading, when it is farther than `coverage_mm`: a lump there
         whose felt footprint is narrower than that could not have shown in any reading yet."""
-        if self.obs.n == 0:
-            return None
-        from scipy.spatial import cKDTree
-
-        cells = self.grid_xy[self._candidates(COVERAGE_STEP_MM)]
-        distance, _ = cKDTree(self.obs.xy).query(cells)
-        far = int(np.argmax(distance))
-        return tuple(map(float, cells[far])) if distance[far] > self.settings.coverage_mm else None
+        return self.coverage.farthest_beyond(self.settings.coverage_mm)
 
     def _unpinned(self) -> np.ndarray | None:
         """Where a lump of the chosen parametric model still needs a reading to be pinned down, or None."""
@@ -111,13 +103,7 @@ class Decision:
     def _enough_spots(self) -> bool:
         """MIN_READINGS readings at distinct spots (at least the probe spacing apart): the same spot
         read again and again is not evidence about the rest of the tissue."""
-        spots: list = []
-        for xy in self.obs.xy:
-            if all(math.dist(xy, s) >= self.settings.min_spacing_mm for s in spots):
-                spots.append(xy)
-                if len(spots) >= MIN_READINGS:
-                    return True
-        return False
+        return self.coverage.spots >= MIN_READINGS
 
     def _adequate(self) -> bool:
         return self._chosen_noise_sd() <= ADEQUATE_NOISE * self.noise_floor
