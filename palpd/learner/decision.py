@@ -15,7 +15,7 @@ import numpy as np
 
 from palpd.estimate import LumpEstimate
 from palpd.learner import acquisition, coverage, describe, shapes
-from palpd.learner.evidence import ADEQUATE_NOISE, SUPPORT_SIGMA, Fit
+from palpd.learner.evidence import ADEQUATE_NOISE, Fit
 from palpd.learner.lumps import find_lumps
 from palpd.learner.threshold import lump_points, surely_above
 
@@ -73,17 +73,9 @@ class Decision:
         return all(_sds(lump) <= tolerance for lump in self.lumps())
 
     def _unexplored(self) -> tuple[float, float] | None:
-        """The spot farthest from every reading, when it is farther than `coverage_mm` or than the
-        chosen lumps are felt (shapes.felt_radius_mm, at SUPPORT_SIGMA of the noise floor: what the
-        evidence calls felt): a lump like the smallest one found could hide there, unfelt by any reading."""
-        return self.coverage.farthest_beyond(min(self.settings.coverage_mm, self._felt_reach_mm()))
-
-    def _felt_reach_mm(self) -> float:
-        fit = self.chosen_fit()
-        if fit is None or fit.family.k == 0:
-            return math.inf
-        change = SUPPORT_SIGMA * self.noise_floor
-        return min(shapes.felt_radius_mm(fit.theta[fit.family.lump_slice(j)], change) for j in range(fit.family.k))
+        """The spot farthest from every reading, when it is farther than `coverage_mm`: a lump there
+        whose felt footprint is narrower than that could not have shown in any reading yet."""
+        return self.coverage.farthest_beyond(self.settings.coverage_mm)
 
     def _unpinned(self) -> np.ndarray | None:
         """Where a lump of the chosen parametric model still needs a reading to be pinned down, or None."""
