@@ -93,7 +93,13 @@ class Decision:
         return self.coverage.farthest_beyond(self.settings.coverage_mm)
 
     def _unpinned(self) -> np.ndarray | None:
-        """Where a lump of the chosen parametric model still needs a reading to be pinned down, or None."""
+        """Where a lump of the chosen parametric model still needs a reading to be pinned down, or None
+        (once an update: the stop rule, the next probe and its score all ask)."""
+        if "unpinned" not in self._cache:
+            self._cache["unpinned"] = self._find_unpinned()
+        return self._cache["unpinned"]
+
+    def _find_unpinned(self) -> np.ndarray | None:
         fit = self.chosen_fit()
         if fit is None or fit.family.k == 0:
             return None
