@@ -91,8 +91,7 @@ class Hypotheses:
             if fit.supported and fit.log_evidence > best.log_evidence:
                 best_k = k
             yield fit.work
-        counts = range(max(1, best_k - 1 if best_k <= 2 else best_k), best_k + 1)
-        for k in sorted(set(counts) | self._ellipse_contenders()):
+        for k in range(max(1, best_k - 1 if best_k <= 2 else best_k), best_k + 1):
             circles = self.fits.get(f"circles:{k}")
             if circles is not None and circles.supported:
                 family = shapes.Family("ellipses", k, priors.scale_mm)
@@ -102,13 +101,6 @@ class Hypotheses:
                     seen.append(fit.name)
                 yield 0 if fit is None else fit.work
         self.fits = {name: self.fits[name] for name in seen}
-
-    def _ellipse_contenders(self) -> set[int]:
-        """Counts whose ellipses weighed at least CONTENDER_WEIGHT last time: still refitted when the
-        circles' count moves on (several circles approximate an elongated lump better and better as
-        readings come, and the ellipse the evidence chose must not drop out for that)."""
-        return {int(name.split(":")[1]) for name, weight in self.weights.items()
-                if name.startswith("ellipse:") and weight >= CONTENDER_WEIGHT}
 
     def assimilate(self, obs: Observations) -> None:
         """Every hypothesis takes the readings since its fit by a Kalman step each (see evidence.py)."""
