@@ -15,7 +15,7 @@ import numpy as np
 
 from palpd.estimate import LumpEstimate
 from palpd.learner import acquisition, coverage, describe, shapes
-from palpd.learner.evidence import ADEQUATE_NOISE, SUPPORT_SIGMA, Fit
+from palpd.learner.evidence import ADEQUATE_NOISE, Fit
 from palpd.learner.lumps import find_lumps
 from palpd.learner.threshold import lump_points, surely_above
 
@@ -67,25 +67,10 @@ class Decision:
         """The stop rule holds: the model choice is confident, no spot of the tissue is unexplored,
         each lump is pinned down by readings (coverage.py) and what is reported has posterior sd within
         the tolerance."""
-        if not self._choice_made() or self._unexplored() is not None or not self._pinned():
+        if not self._choice_made() or self._unexplored() is not None or self._unpinned() is not None:
             return False
-        return self._unfelt() is None
-
-    def _pinned(self) -> bool:
-        """Each lump pinned down by readings and reported within the tolerance."""
         tolerance = self.settings.tolerance_mm
-        return self._unpinned() is None and all(_sds(lump) <= tolerance for lump in self.lumps())
-
-    def _unfelt(self) -> tuple[float, float] | None:
-        """The spot farthest from every reading, when a lump like the smallest one found (its felt
-        radius, shapes.felt_radius_mm, at SUPPORT_SIGMA of the noise floor: what the evidence calls
-        felt) could sit there without changing any reading."""
-        fit = self.chosen_fit()
-        if fit is None or fit.family.k == 0:
-            return None
-        change = SUPPORT_SIGMA * self.noise_floor
-        reach = min(shapes.felt_radius_mm(fit.theta[fit.family.lump_slice(j)], change) for j in range(fit.family.k))
-        return self.coverage.farthest_beyond(reach)
+        return all(_sds(lump) <= tolerance for lump in self.lumps())
 
     def _unexplored(self) -> tuple[float, float] | None:
         """The spot farthest from every reading, when it is farther than `coverage_mm`: a lump there
@@ -144,9 +129,7 @@ class Decision:
         if self.decided():
             return None
         unexplored = self._unexplored() if self._choice_made() else None
-        if unexplored is None and self._choice_made() and self._pinned():
-            unexplored = self._unfelt()  # all else is decided: where a lump like those found could hide
-        if unexplored is not None:  # look where nothing was read yet
+        if unexplored is not None:  # all else is decided: look where nothing was read yet
             return unexplored
         cells = self._candidates()
         score = self._score(cells)

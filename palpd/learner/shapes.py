@@ -152,15 +152,6 @@ def rho_at(params: np.ndarray, t: float) -> float:
     return math.exp(log_u / s)
 
 
-def felt_radius_mm(params: np.ndarray, log_change: float) -> float:
-    """How far from its centre (along the equal-area circle) a lump still changes log stiffness by
-    `log_change`: beyond it a reading could not tell it was there."""
-    p = math.expm1(log_change) / math.exp(params[-1])
-    if p >= 1.0:
-        return 0.0
-    return math.exp(params[2]) * rho_at(params, math.log(1.0 / p - 1.0))
-
-
 def make_lump(center, radius_mm: float, sharpness: float, contrast: float, stretch=None, tail: float = 0.0):
     """Parameters of one lump (an ellipse when `stretch` (e1, e2) is given)."""
     shape = [] if stretch is None else [float(stretch[0]), float(stretch[1])]
