@@ -166,7 +166,10 @@ class Decision:
                 return 1.0 / (1.0 + np.hypot(xy[:, 0] - target[0], xy[:, 1] - target[1]))
             score = np.zeros(len(xy))
             near = coverage.near_edges(fit, xy, self.settings.min_spacing_mm)  # where a centre or radius is read
-            score[near] = acquisition.boundary_gain(fit, xy[near], self._noise_var())
+            # where to probe by the Laplace covariance: its widest directions are where the posterior
+            # is still unexplored (checked, they are narrow only along the line that was looked at)
+            raw = self.hypotheses.raw.get(self.choice.chosen, fit)
+            score[near] = acquisition.boundary_gain(raw, xy[near], self._noise_var())
             return score
         tau = np.log(self.free_form_map().tau).ravel()[cells]
         return acquisition.straddle(self.gp.mean[cells], self.gp.std()[cells], tau, self.settings.confidence)

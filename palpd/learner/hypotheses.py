@@ -55,6 +55,7 @@ class Hypotheses:
         self.min_contrast = min_contrast
         self.noise_floor = noise_floor
         self.fits: dict[str, Fit] = {}
+        self.raw: dict[str, Fit] = {}  # each checked fit as refitted: its Laplace covariance (where to probe)
         self.weights: dict[str, float] = {}  # of the last choice: who is worth a fresh look when surprised
 
     def priors(self, obs: Observations) -> Priors:
@@ -113,6 +114,7 @@ class Hypotheses:
         refit, then carried along by the Kalman steps; None for the free-form map."""
         fit = self.fits.get(name)
         if fit is not None and fit.family.k and not fit.checked:
+            self.raw[name] = fit
             fit = self.fits[name] = replace(fit, cov=posterior.checked_cov(fit, obs, self.priors(obs)), checked=True)
         return fit
 
