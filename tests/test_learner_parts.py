@@ -23,9 +23,12 @@ def test_a_one_block_refit_equals_the_row_by_row_posterior_and_survives_duplicat
     xy = rng.uniform(-30, 30, (40, 2))
     y = np.log(0.12 + 0.5 * (np.hypot(*(xy - 5.0).T) < 8))
     hyper = Hyper(np.log(0.12), 0.5, 4.0, 1e-4)
-    rows = IncrementalGP(grid(), hyper)
+    rows, read_each_time = IncrementalGP(grid(), hyper), IncrementalGP(grid(), hyper)
     for p, v in zip(xy, y):
         rows.add(p, v, 1e-4)
+        read_each_time.add(p, v, 1e-4)
+        read_each_time.var  # the grid's rows one at a time, where `rows` makes them in one block when asked
+    assert read_each_time.mean == pytest.approx(rows.mean, abs=1e-5)
     block = IncrementalGP(grid(), hyper)
     block.xy, block.y, block.noise_var = rows.xy, rows.y, rows.noise_var
     block.refit(hyper)

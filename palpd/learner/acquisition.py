@@ -91,7 +91,10 @@ def best_candidate(score: np.ndarray, cells_xy: np.ndarray, blocked: np.ndarray,
     return float(cells_xy[best, 0]), float(cells_xy[best, 1])
 
 
-def block_near(blocked: np.ndarray, cells_xy: np.ndarray, xy_mm, spacing_mm: float) -> None:
-    """Mark the cells within the minimum spacing of a new probe."""
-    near = np.hypot(cells_xy[:, 0] - xy_mm[0], cells_xy[:, 1] - xy_mm[1]) < spacing_mm
-    blocked |= near
+def block_near(blocked: np.ndarray, xs: np.ndarray, ys: np.ndarray, xy_mm, spacing_mm: float) -> None:
+    """Mark the cells of the (len(ys) × len(xs), row-major) grid within the minimum spacing of a new
+    probe: only the window of rows and columns that can hold them is looked at."""
+    cols = slice(*np.searchsorted(xs, [xy_mm[0] - spacing_mm, xy_mm[0] + spacing_mm]))
+    rows = slice(*np.searchsorted(ys, [xy_mm[1] - spacing_mm, xy_mm[1] + spacing_mm]))
+    near = np.hypot(xs[None, cols] - xy_mm[0], ys[rows, None] - xy_mm[1]) < spacing_mm
+    blocked.reshape(len(ys), len(xs))[rows, cols] |= near

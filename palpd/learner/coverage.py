@@ -94,3 +94,32 @@ def near_edges(fit, xy: np.ndarray, spacing_mm: float) -> np.ndarray:
         outer = shapes.rho_at(params, EDGE_LEVEL) + widen
         near |= (lr2 >= 2.0 * math.log(max(inner, 1e-3))) & (lr2 <= 2.0 * math.log(outer))
     return near
+
+
+class Readings:
+    """Where the readings are, kept up to date one reading at a time (O(cells) each, no tree to rebuild):
+    each coverage cell's distance to the nearest reading, and how many readings sit at distinct spots
+    (greedily, in arrival order, at least the probe spacing apart)."""
+
+    def __init__(self, cells_xy: np.ndarray, spacing_mm: float) -> None:
+        self.cells_xy = cells_xy
+        self.distance_mm = np.full(len(cells_xy), np.inf)
+        self.spacing_mm = spacing_mm
+        self._spots: list[tuple[float, float]] = []
+
+    def add(self, xy) -> None:
+        x, y = float(xy[0]), float(xy[1])
+        np.minimum(self.distance_mm, np.hypot(self.cells_xy[:, 0] - x, self.cells_xy[:, 1] - y), out=self.distance_mm)
+        if all(math.dist((x, y), spot) >= self.spacing_mm for spot in self._spots):
+            self._spots.append((x, y))
+
+    @property
+    def spots(self) -> int:
+        return len(self._spots)
+
+    def farthest_beyond(self, reach_mm: float) -> tuple[float, float] | None:
+        """The cell farthest from every reading, if it is beyond `reach_mm` (None before any reading)."""
+        if not self._spots:
+            return None
+        far = int(np.argmax(self.distance_mm))
+        return tuple(map(float, self.cells_xy[far])) if self.distance_mm[far] > reach_mm else None

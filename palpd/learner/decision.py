@@ -23,14 +23,15 @@ MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model'
 MIN_WEIGHT = 0.01  # hypotheses below this weight are left out of the disagreement
 MAX_RIVALS = 4
 CANDIDATE_STRIDE_MM = 1.0  # probes are chosen on a lattice at least this fine
-COVERAGE_STEP_MM = 2.0  # how finely the unexplored spots are looked for
 
 
 class Decision:
     """Mixed into Learner: needs choice, hypotheses, obs, gp, settings, grid and probe bookkeeping."""
 
     def chosen_fit(self) -> Fit | None:
-        return None if self.choice is None else self.hypotheses.fits.get(self.choice.chosen)
+        """The chosen parametric fit, its covariance checked against the posterior (posterior.py):
+        what is reported, what the stop rule reads and what the next probe is to shrink."""
+        return None if self.choice is None else self.hypotheses.checked(self.choice.chosen, self.obs)
 
     def model(self) -> dict | None:
         """{chosen, weight, runner_up} of the scan report and the estimate event."""
@@ -74,17 +75,16 @@ class Decision:
     def _unexplored(self) -> tuple[float, float] | None:
         """The spot farthest from every reading, when it is farther than `coverage_mm`: a lump there
         whose felt footprint is narrower than that could not have shown in any reading yet."""
-        if self.obs.n == 0:
-            return None
-        from scipy.spatial import cKDTree
-
-        cells = self.grid_xy[self._candidates(COVERAGE_STEP_MM)]
-        distance, _ = cKDTree(self.obs.xy).query(cells)
-        far = int(np.argmax(distance))
-        return tuple(map(float, cells[far])) if distance[far] > self.settings.coverage_mm else None
+        return self.coverage.farthest_beyond(self.settings.coverage_mm)
 
     def _unpinned(self) -> np.ndarray | None:
-        """Where a lump of the chosen parametric model still needs a reading to be pinned down, or None."""
+        """Where a lump of the chosen parametric model still needs a reading to be pinned down, or None
+        (once an update: the stop rule, the next probe and its score all ask)."""
+        if "unpinned" not in self._cache:
+            self._cache["unpinned"] = self._find_unpinned()
+        return self._cache["unpinned"]
+
+    def _find_unpinned(self) -> np.ndarray | None:
         fit = self.chosen_fit()
         if fit is None or fit.family.k == 0:
             return None
@@ -109,13 +109,7 @@ class Decision:
     def _enough_spots(self) -> bool:
         """MIN_READINGS readings at distinct spots (at least the probe spacing apart): the same spot
         read again and again is not evidence about the rest of the tissue."""
-        spots: list = []
-        for xy in self.obs.xy:
-            if all(math.dist(xy, s) >= self.settings.min_spacing_mm for s in spots):
-                spots.append(xy)
-                if len(spots) >= MIN_READINGS:
-                    return True
-        return False
+        return self.coverage.spots >= MIN_READINGS
 
     def _adequate(self) -> bool:
         return self._chosen_noise_sd() <= ADEQUATE_NOISE * self.noise_floor
@@ -172,7 +166,10 @@ class Decision:
                 return 1.0 / (1.0 + np.hypot(xy[:, 0] - target[0], xy[:, 1] - target[1]))
             score = np.zeros(len(xy))
             near = coverage.near_edges(fit, xy, self.settings.min_spacing_mm)  # where a centre or radius is read
-            score[near] = acquisition.boundary_gain(fit, xy[near], self._noise_var())
+            # where to probe by the Laplace covariance: its widest directions are where the posterior
+            # is still unexplored (checked, they are narrow only along the line that was looked at)
+            raw = self.hypotheses.raw.get(self.choice.chosen, fit)
+            score[near] = acquisition.boundary_gain(raw, xy[near], self._noise_var())
             return score
         tau = np.log(self.free_form_map().tau).ravel()[cells]
         return acquisition.straddle(self.gp.mean[cells], self.gp.std()[cells], tau, self.settings.confidence)

@@ -54,6 +54,7 @@ class Fit:
     n: int  # readings when fitted
     log_det: float  # log det of the curvature then
     work: int = 0  # what the fit cost, in evaluated residual entries (deterministic, unlike a clock)
+    checked: bool = False  # cov checked against the posterior along its widest directions (posterior.py)
 
     @property
     def name(self) -> str:
@@ -148,6 +149,11 @@ def _log_posterior(family, theta, obs, priors, noise) -> float:
     pr, _ = prior_residuals(family, theta, priors)
     return (log_likelihood(r, obs.sd, obs.kind, noise) - 0.5 * float(pr @ pr)
             + priors.log_density(family, theta))
+
+
+def neg_log_posterior(family, theta, obs, priors, noise) -> float:
+    """−log p(θ | readings) up to a constant (posterior.py checks the Laplace covariance with it)."""
+    return -_log_posterior(family, theta, obs, priors, noise)
 
 
 def _evidence(family, theta, obs, priors, noise, noise_floor) -> Fit:

@@ -83,6 +83,16 @@ class IncrementalGP:
         self.noise_var = np.append(self.noise_var, max(float(noise_var), 0.0))
         self._append_row(self.n - 1)
 
+    @property
+    def mean(self) -> np.ndarray:
+        self._flush()
+        return self._mean
+
+    @property
+    def var(self) -> np.ndarray:
+        self._flush()
+        return self._var
+
     def refit(self, hyper: Hyper) -> None:
         """New kernel: one Cholesky and one triangular solve (row by row only for a singular factor)."""
         self.hyper = hyper
@@ -125,8 +135,8 @@ class IncrementalGP:
             block[:len(part)] = part
             self._blocks.append(block)
         grid_part = solved[:, 1:]
-        self.mean = h.mean + grid_part.T @ solved[:, 0]
-        self.var = prior_var(self.grid_xy, h) - np.einsum("ij,ij->j", grid_part, grid_part)
+        self._mean = h.mean + grid_part.T @ solved[:, 0]
+        self._var = prior_var(self.grid_xy, h) - np.einsum("ij,ij->j", grid_part, grid_part)
         return True
 
     def _reset_factor(self, capacity: int) -> None:
@@ -134,10 +144,14 @@ class IncrementalGP:
         self._w = np.zeros(capacity)
         self._log_det = 0.0
         self._blocks: list[np.ndarray] = []  # V = L⁻¹ K(points, grid) in float32 row blocks: no copy as it grows
-        self.mean = np.full(len(self.grid_xy), self.hyper.mean)
-        self.var = prior_var(self.grid_xy, self.hyper)
+        self._mean = np.full(len(self.grid_xy), self.hyper.mean)
+        self._var = prior_var(self.grid_xy, self.hyper)
+        self._pending = 0  # rows n − _pending … n − 1 are in the factor but not yet in V, mean and var
 
     def _append_row(self, i: int) -> None:
+        """Row i of the factor, of w and of log det: O(i²). Its row of V = L⁻¹ K(points, grid), O(i·G),
+        waits until the grid is asked for (_flush): while a parametric model is chosen, most updates
+        never look at the free-form map."""
         if i >= self._L.shape[0]:
             self._grow(2 * self._L.shape[0])
         h, p = self.hyper, self.xy[i:i + 1]
@@ -147,22 +161,32 @@ class IncrementalGP:
         self._L[i, :i], self._L[i, i] = row, d
         self._log_det += math.log(d)
         self._w[i] = (self.y[i] - h.mean - float(row @ self._w[:i])) / d
-        v = kernel_to_grid(p[0], self._grid32, h).astype(np.float64)
-        if i:
-            v -= self._project(row)
-        v /= d
-        self._store(i, v)
-        self.mean += v * self._w[i]
-        self.var -= v * v
+        self._pending += 1
 
-    def _project(self, row: np.ndarray) -> np.ndarray:
-        """row @ V[:len(row)] over the row blocks."""
-        out = np.zeros(len(self.grid_xy))
-        row32 = row.astype(np.float32)
+    def _flush(self) -> None:
+        """The pending rows of V in one block: V_p = L_pp⁻¹ (K(p, grid) − L_p,old V_old), then the
+        grid's mean and variance: one matrix product instead of a vector product per row."""
+        if not self._pending:
+            return
+        n, first = self.n, self.n - self._pending
+        k_new = np.stack([kernel_to_grid(self.xy[i], self._grid32, self.hyper) for i in range(first, n)])
+        if first:
+            k_new -= self._project(self._L[first:n, :first])
+        v = solve_triangular(self._L[first:n, first:n], k_new.astype(np.float64), lower=True, check_finite=False)
+        for offset, row in enumerate(v):
+            self._store(first + offset, row)
+        self._mean += v.T @ self._w[first:n]
+        self._var -= np.einsum("ij,ij->j", v, v)
+        self._pending = 0
+
+    def _project(self, rows: np.ndarray) -> np.ndarray:
+        """rows @ V[:rows.shape[1]] over the row blocks (float32, as V is kept)."""
+        out = np.zeros((len(rows), len(self.grid_xy)), dtype=np.float32)
+        rows32 = rows.astype(np.float32)
         for b, block in enumerate(self._blocks):
-            part = row32[b * BLOCK_ROWS:(b + 1) * BLOCK_ROWS]
+            part = rows32[:, b * BLOCK_ROWS:(b + 1) * BLOCK_ROWS]
             if part.size:
-                out += part @ block[:part.size]
+                out += part @ block[:part.shape[1]]
         return out
 
     def _store(self, i: int, v: np.ndarray) -> None:

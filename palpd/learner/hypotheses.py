@@ -12,11 +12,11 @@ prior odds): the simplest adequate hypothesis wins unless the data ask for more.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from palpd.learner import evidence, shapes
+from palpd.learner import evidence, posterior, shapes
 from palpd.learner.evidence import Fit, Priors
 from palpd.learner.observations import EXACT, Observations
 
@@ -55,6 +55,7 @@ class Hypotheses:
         self.min_contrast = min_contrast
         self.noise_floor = noise_floor
         self.fits: dict[str, Fit] = {}
+        self.raw: dict[str, Fit] = {}  # each checked fit as refitted: its Laplace covariance (where to probe)
         self.weights: dict[str, float] = {}  # of the last choice: who is worth a fresh look when surprised
 
     def priors(self, obs: Observations) -> Priors:
@@ -107,6 +108,15 @@ class Hypotheses:
         priors = self.priors(obs)
         for name, old in list(self.fits.items()):
             self.fits[name] = evidence.assimilated(old, obs, priors)
+
+    def checked(self, name: str, obs: Observations) -> Fit | None:
+        """The fit of `name` with its covariance checked against the posterior (posterior.py): once per
+        refit, then carried along by the Kalman steps; None for the free-form map."""
+        fit = self.fits.get(name)
+        if fit is not None and fit.family.k and not fit.checked:
+            self.raw[name] = fit
+            fit = self.fits[name] = replace(fit, cov=posterior.checked_cov(fit, obs, self.priors(obs)), checked=True)
+        return fit
 
     @staticmethod
     def _name_of(k: int) -> str:

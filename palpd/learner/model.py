@@ -13,13 +13,14 @@ import math
 
 import numpy as np
 
-from palpd.learner import acquisition, lumps as free_form, maps
+from palpd.learner import acquisition, coverage, lumps as free_form, maps
 from palpd.learner.decision import Decision
 from palpd.learner.gp import Hyper, IncrementalGP, fit_hyper
 from palpd.learner.hypotheses import Hypotheses
 from palpd.learner.observations import EXACT, Observations
 from palpd.learner.threshold import free_form_levels, lump_points, supervised_levels, tau_field
 
+COVERAGE_STEP_MM = 2.0  # how finely the unexplored spots are looked for
 REFIT_FLOPS = 5.5e7  # a one-block refit costs n²·G; beyond this (60 readings on 121²) the kernel is kept: no spikes
 HYPER_POINTS = 60  # the kernel is learned from at most this many readings, evenly spread over the arrival order
 CENSORED_SD = 0.25  # log sd the free-form map gives a bound, read as a reading at the bound
@@ -50,6 +51,7 @@ class Learner(Decision):
         self.hypotheses = Hypotheses(size_mm, min_contrast, self.noise_floor)
         self.design = acquisition.initial_design(size_mm, settings.initial_points, seed)
         self.blocked = np.zeros(len(self.grid_xy), dtype=bool)
+        self.coverage = coverage.Readings(self.grid_xy[self._candidates(COVERAGE_STEP_MM)], settings.min_spacing_mm)
         self.probed: list[tuple[float, float]] = []
         self.choice = None
         self._fitted_at = 0
@@ -66,12 +68,13 @@ class Learner(Decision):
         xy = (float(xy_mm[0]), float(xy_mm[1]))
         self.probed.append(xy)
         self._cache.clear()
-        acquisition.block_near(self.blocked, self.grid_xy, xy, self.settings.min_spacing_mm)
+        acquisition.block_near(self.blocked, self.xs, self.ys, xy, self.settings.min_spacing_mm)
         if outcome is None:
             outcome = "fit" if _usable(stiffness_n_per_mm) else "rejected"
         value = stiffness_n_per_mm if outcome == "fit" else bound_n_per_mm
         if not self.obs.add(xy, outcome, value, sd_n_per_mm if outcome == "fit" else 0.0):
             return
+        self.coverage.add(xy)
         own_sd = self.obs.sd[-1] if self.obs.kind[-1] == EXACT else CENSORED_SD
         self.gp.add(xy, self.obs.y[-1], own_sd**2)
         if self._refit_pays():
@@ -162,7 +165,7 @@ class Learner(Decision):
         if self.choice is None:
             return None
         if "grid" not in self._cache:
-            fit = self.hypotheses.fits.get(self.choice.chosen)
+            fit = self.chosen_fit()
             if fit is not None and fit.family.k:
                 self._cache["grid"] = maps.parametric(fit, self.xs, self.ys, self.grid_xy)
             else:

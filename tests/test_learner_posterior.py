@@ -1,0 +1,82 @@
+"""The reported uncertainty is the posterior's, not only its linearisation's (learner/posterior.py).
+
+A deep lump felt through 25 mm of tissue has the heaviest tails the lump family
+allows (edge sharpness at its floor, power-law tails): to first order the
+background, contrast, tail shape and radius trade off, so the Laplace radius sd
+is far wider than what the readings allow. The check must bring it to what the
+profile likelihood says, and leave a well-behaved lump's covariance as it was.
+"""
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.stats import qmc
+
+from palpd.learner import describe, evidence, posterior
+from palpd.learner.hypotheses import Hypotheses
+from palpd.learner.observations import Observations
+from palpd.learner.solver import levenberg_marquardt
+
+CENTRE, RADIUS_MM, TISSUE, LUMP = (-6.0, 5.0), 9.0, 0.12, 0.8
+
+
+def readings(sharpness: float, count: int = 40, seed: int = 0) -> Observations:
+    rng = np.random.default_rng(seed)
+    xy = qmc.scale(qmc.Halton(d=2, scramble=True, seed=seed).random(count), [-30, -30], [30, 30])
+    rho = np.hypot(*(xy - CENTRE).T) / RADIUS_MM
+    k = TISSUE + (LUMP - TISSUE) / (1.0 + rho**sharpness)
+    obs = Observations()
+    for p, value in zip(xy, k * np.exp(rng.normal(0.0, 0.005, count))):
+        obs.add(p, "fit", float(value), 0.001 * float(value))
+    return obs
+
+
+def circle(obs: Observations):
+    hypotheses = Hypotheses((60.0, 60.0), 0.3, 0.01)
+    hypotheses.update(obs, [], float(np.median(obs.y)))
+    return hypotheses.fits["circles:1"], hypotheses.priors(obs)
+
+
+def radius_sd_mm(fit) -> float:
+    (lump,) = describe.lumps_of(fit)
+    return lump.radius_sd_mm
+
+
+def profile_radius_sd_mm(fit, obs, priors) -> float:
+    """Half the width of the radius interval where −log posterior (the rest refitted) rises by ½."""
+    lo, hi = priors.bounds(fit.family)
+    def least(theta, low, high) -> float:
+        return levenberg_marquardt(lambda t: evidence._stacked(fit.family, t, obs, priors, fit.noise_sd),
+                                   theta, low, high, 1e-6, 200)[1]
+    base = least(fit.theta, lo, hi)
+    def rise(delta_mm: float) -> float:
+        low, high, start = lo.copy(), hi.copy(), fit.theta.copy()
+        low[5] = high[5] = start[5] = math.log(math.exp(fit.theta[5]) + delta_mm)
+        return least(start, low, high) - base
+    steps = np.array([0.01, 0.03, 0.1, 0.3, 1.0, 2.0])
+    widths = [np.interp(0.5, [0.0, *[rise(sign * s) for s in steps]], [0.0, *steps]) for sign in (1.0, -1.0)]
+    return 0.5 * sum(widths)
+
+
+@pytest.mark.parametrize("sharpness, count", [(2.0, 40), (4.0, 40), (6.0, 40), (12.0, 60)])
+def test_the_reported_radius_sd_is_the_posteriors(sharpness, count):
+    """From a deep lump's wide edge (sharpness 2, the family's floor) to a sharp one: the checked
+    radius sd is within a factor of two of the profile likelihood's, whatever the linearisation said."""
+    obs = readings(sharpness, count)
+    fit, priors = circle(obs)
+    assert math.exp(fit.theta[5]) == pytest.approx(RADIUS_MM, abs=0.3)
+    checked = replace(fit, cov=posterior.checked_cov(fit, obs, priors))
+    profile = profile_radius_sd_mm(fit, obs, priors)
+    assert profile / 2.0 <= radius_sd_mm(checked) <= 2.0 * profile
+    assert describe.lumps_of(checked)[0].center_sd_mm == pytest.approx(describe.lumps_of(fit)[0].center_sd_mm, rel=0.5)
+    assert np.all(np.isfinite(checked.cov)) and np.allclose(checked.cov, checked.cov.T)
+
+
+def test_where_the_linearisation_is_wrong_it_is_corrected():
+    """The deep lump: the Laplace radius sd is more than twice the posterior's; checked, it is not."""
+    obs = readings(2.0)
+    fit, priors = circle(obs)
+    profile = profile_radius_sd_mm(fit, obs, priors)
+    assert radius_sd_mm(fit) > 2.0 * profile
+    assert radius_sd_mm(replace(fit, cov=posterior.checked_cov(fit, obs, priors))) < 1.2 * profile
