@@ -129,7 +129,11 @@ class Hypotheses:
         starts = [] if old is None else [old.theta]
         contender = self.weights.get(family.name, 0.0) >= CONTENDER_WEIGHT
         if old is None or obs.n % RESTART_EVERY == 0 or (contender and self._surprised(old, obs)):
-            starts += new_starts() + ([] if old is None or not contender else _resized(old))
+            fresh = new_starts() + ([] if old is None or not contender else _resized(old))
+            if max_starts is not None and fresh:  # a bounded refit: the fresh starts in turn, over updates
+                turn = obs.n % len(fresh)
+                fresh = fresh[turn:] + fresh[:turn]
+            starts += fresh
         starts = starts[:max_starts]
         iterations = LIGHT_ITERATIONS if max_starts is not None else 60
         if family.k == 0:
