@@ -26,6 +26,7 @@ HYPER_POINTS = 60  # the kernel is learned from at most this many readings, even
 CENSORED_SD = 0.25  # log sd the free-form map gives a bound, read as a reading at the bound
 FULL_UPDATE_POINTS = 60  # every hypothesis refitted every update up to this many readings
 LIGHT_STARTS = 2  # a bounded refit step tries at most this many starts (warm + fresh ones in turn)...
+WARM_ITERATIONS = 60
 UPDATE_WORK = 5e4  # ...and up to FULL_UPDATE_POINTS an update does refit steps until this much work (residual
 #                  entries, evidence.fit's deterministic unit, not a clock; ~4000 a CPU ms here): the rest waits
 REFITS_PER_DOUBLING = 30  # ...and there are this many refits while the readings double (one every n/30 readings)
@@ -117,11 +118,12 @@ class Learner(Decision):
         if self.choice is None:
             self.refresh()
             return
-        self.hypotheses.assimilate(self.obs)
         if n <= FULL_UPDATE_POINTS:
-            self._advance_pass(UPDATE_WORK)
-        elif n % max(1, n // REFITS_PER_DOUBLING) == 0:
-            self._advance_pass(0.0)
+            self.hypotheses.update(self.obs, self._find_regions(), self._tissue_log(), LIGHT_STARTS, WARM_ITERATIONS)
+        else:
+            self.hypotheses.assimilate(self.obs)
+            if n % max(1, n // REFITS_PER_DOUBLING) == 0:
+                self._advance_pass(0.0)
         self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None)
 
     def _advance_pass(self, work: float) -> None:
