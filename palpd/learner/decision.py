@@ -67,12 +67,6 @@ class Decision:
         """The stop rule holds: the model choice is confident, no spot of the tissue is unexplored,
         each lump is pinned down by readings (coverage.py) and what is reported has posterior sd within
         the tolerance."""
-        if not self._rule_holds():
-            return False
-        self.refresh()  # the rule held on fits carried by Kalman steps: decide on fits refitted in full
-        return self._rule_holds()
-
-    def _rule_holds(self) -> bool:
         if not self._choice_made() or self._unexplored() is not None or self._unpinned() is not None:
             return False
         tolerance = self.settings.tolerance_mm

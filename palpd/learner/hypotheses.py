@@ -61,14 +61,12 @@ class Hypotheses:
     def priors(self, obs: Observations) -> Priors:
         return Priors(self.size_mm, self.min_contrast, float(np.median(obs.y)))
 
-    def update(self, obs: Observations, regions: list[Region], tissue_log: float, max_starts: int | None = None,
-               iterations: int | None = None) -> None:
+    def update(self, obs: Observations, regions: list[Region], tissue_log: float) -> None:
         """Refit every parametric hypothesis worth trying on the readings so far."""
-        for _ in self.refits(obs, regions, tissue_log, max_starts, iterations):
+        for _ in self.refits(obs, regions, tissue_log):
             pass
 
-    def refits(self, obs: Observations, regions: list[Region], tissue_log: float, max_starts: int | None = None,
-               iterations: int | None = None):
+    def refits(self, obs: Observations, regions: list[Region], tissue_log: float, max_starts: int | None = None):
         """A pass over the hypotheses, one refit per step (a generator yielding each step's work, so that
         a pass can be spread over updates): none; k circles while the last leaves a reading
         unexplained; ellipses for the best count (and one fewer: an elongated lump can look like two
@@ -76,7 +74,7 @@ class Hypotheses:
         priors = self.priors(obs)
         self.tissue_log = tissue_log
         seen = ["none"]
-        self.fits["none"] = self._fit(shapes.Family("circles", 0, priors.scale_mm), obs, priors, list, max_starts, iterations)
+        self.fits["none"] = self._fit(shapes.Family("circles", 0, priors.scale_mm), obs, priors, list, max_starts)
         yield self.fits["none"].work
         best_k = 0
         for k in range(1, MAX_LUMPS + 1):  # one lump more while the last fit leaves a reading unexplained
@@ -85,7 +83,7 @@ class Hypotheses:
                 break
             family = shapes.Family("circles", k, priors.scale_mm)
             fit = self._fit(family, obs, priors, lambda: self._circle_starts(prev, obs, regions, k, priors),
-                            max_starts, iterations)
+                            max_starts)
             if fit is None:
                 break
             self.fits[fit.name] = fit
@@ -98,8 +96,7 @@ class Hypotheses:
             circles = self.fits.get(f"circles:{k}")
             if circles is not None and circles.supported:
                 family = shapes.Family("ellipses", k, priors.scale_mm)
-                fit = self._fit(family, obs, priors, lambda: self._ellipse_starts(circles, regions),
-                                max_starts, iterations)
+                fit = self._fit(family, obs, priors, lambda: self._ellipse_starts(circles, regions), max_starts)
                 if fit is not None:
                     self.fits[fit.name] = fit
                     seen.append(fit.name)
@@ -125,21 +122,16 @@ class Hypotheses:
     def _name_of(k: int) -> str:
         return "none" if k == 0 else f"circles:{k}"
 
-    def _fit(self, family, obs, priors, new_starts, max_starts: int | None = None,
-             iterations: int | None = None) -> Fit | None:
+    def _fit(self, family, obs, priors, new_starts, max_starts: int | None = None) -> Fit | None:
         """Refit from where the hypothesis was; from fresh starts too when it is new, when the readings
         since surprised it, or every RESTART_EVERY readings (a warm start can sit in a poor optimum)."""
         old = self.fits.get(family.name)
         starts = [] if old is None else [old.theta]
         contender = self.weights.get(family.name, 0.0) >= CONTENDER_WEIGHT
         if old is None or obs.n % RESTART_EVERY == 0 or (contender and self._surprised(old, obs)):
-            fresh = new_starts() + ([] if old is None or not contender else _resized(old))
-            if max_starts is not None and fresh:  # a bounded refit: the fresh starts in turn, over updates
-                turn = obs.n % len(fresh)
-                fresh = fresh[turn:] + fresh[:turn]
-            starts += fresh
+            starts += new_starts() + ([] if old is None or not contender else _resized(old))
         starts = starts[:max_starts]
-        iterations = iterations or (LIGHT_ITERATIONS if max_starts is not None else 60)
+        iterations = LIGHT_ITERATIONS if max_starts is not None else 60
         if family.k == 0:
             starts = [np.array([priors.level, 0.0, 0.0])] + starts
         if not starts:

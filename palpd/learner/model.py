@@ -25,17 +25,14 @@ REFIT_FLOPS = 2.5e7  # a one-block refit costs n²·G (~25 ms here at this); bey
 HYPER_POINTS = 60  # the kernel is learned from at most this many readings, evenly spread over the arrival order
 CENSORED_SD = 0.25  # log sd the free-form map gives a bound, read as a reading at the bound
 FULL_UPDATE_POINTS = 60  # every hypothesis refitted every update up to this many readings
-LIGHT_STARTS = 2  # a bounded refit step tries at most this many starts (warm + fresh ones in turn)...
-WARM_ITERATIONS = 60
-UPDATE_WORK = 5e4  # ...and up to FULL_UPDATE_POINTS an update does refit steps until this much work (residual
-#                  entries, evidence.fit's deterministic unit, not a clock; ~4000 a CPU ms here): the rest waits
+LIGHT_STARTS = 2  # beyond, a refit tries at most this many starts...
 REFITS_PER_DOUBLING = 30  # ...and there are this many refits while the readings double (one every n/30 readings)
 
 
 class Learner(Decision):
     def __init__(self, size_mm: tuple[float, float], settings, min_contrast: float = 0.3, seed: int = 0,
                  travel_mm_per_palpation: float = 100.0, supervised_tau_n_per_mm: float | None = None) -> None:
-        from sklearn import gaussian_process  # noqa: F401  (the kernel fit's: loaded now, not mid-scan)
+        from sklearn import gaussian_process  # noqa: F401  (the kernel fit's: loaded now, not at the first refit mid-scan)
 
         self.settings = settings
         self.size_mm = (float(size_mm[0]), float(size_mm[1]))
@@ -60,8 +57,7 @@ class Learner(Decision):
         self.probed: list[tuple[float, float]] = []
         self.choice = None
         self._fitted_at = 0
-        self._pass = None  # the pass of refits under way (spread over updates)
-        self._fresh_at = -1  # readings when every hypothesis was last refitted in full (the stop rule's evidence)
+        self._pass = None  # the pass of refits under way (many readings: one step per update)
         self._regions = []
         self._cache: dict = {}
 
@@ -108,45 +104,19 @@ class Learner(Decision):
         return supervised_levels(k, self.supervised_tau_n_per_mm)
 
     def _weigh(self) -> None:
-        """Refit and weigh the hypotheses within a bounded budget per update: every hypothesis first
-        assimilates the new reading (a Kalman step each, evidence.py), then the pass of refits
-        (hypotheses.refits, LIGHT_STARTS starts each, the fresh starts in turn) goes on for UPDATE_WORK
-        per update up to FULL_UPDATE_POINTS readings, and beyond one refit every n/REFITS_PER_DOUBLING
-        readings: the fits revisited as often as the data double. The first choice comes from a
-        whole pass; the stop rule always reads a whole pass at the current readings (`refresh`)."""
+        """Refit and weigh the hypotheses: a whole pass (hypotheses.refits) every update while readings
+        are few; beyond FULL_UPDATE_POINTS every hypothesis assimilates each new reading (a Kalman step)
+        and the pass goes on one refit every n/REFITS_PER_DOUBLING readings, from at most LIGHT_STARTS
+        starts: bounded work per update, the fits still revisited as often as the data double."""
         n = self.obs.n
-        if self.choice is None:
-            self.refresh()
-            return
-        if n <= FULL_UPDATE_POINTS:
-            self.hypotheses.update(self.obs, self._find_regions(), self._tissue_log(), LIGHT_STARTS, WARM_ITERATIONS)
+        if n <= FULL_UPDATE_POINTS or self.choice is None:
+            self.hypotheses.update(self.obs, self._find_regions(), self._tissue_log())
+            self._pass = None
         else:
             self.hypotheses.assimilate(self.obs)
-            if n % max(1, n // REFITS_PER_DOUBLING) == 0:
-                self._advance_pass(0.0)
-        self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None)
-
-    def _advance_pass(self, work: float) -> None:
-        """Refit steps of the pass under way (a new one when it is done) until `work` is spent (one at least)."""
-        spent, started = -1.0, False
-        while spent < work:
-            step = next(self._pass, None) if self._pass is not None else None
-            if step is None:
-                if started:  # at most one new pass an update (each pass finds the free-form regions)
-                    return
-                started = True
+            if n % max(1, n // REFITS_PER_DOUBLING) == 0 and next(self._pass or iter(()), None) is None:
                 self._pass = self.hypotheses.refits(self.obs, self._find_regions(), self._tissue_log(), LIGHT_STARTS)
-                step = next(self._pass)
-            spent = max(spent, 0.0) + step
-
-    def refresh(self) -> None:
-        """Every hypothesis refitted in full (all its starts) on the readings so far, and weighed: what
-        the stop rule decides on (never on evidence older than the last reading)."""
-        if self._fresh_at == self.obs.n and self.choice is not None:
-            return
-        self.hypotheses.update(self.obs, self._find_regions(), self._tissue_log())
-        self._pass, self._fresh_at = None, self.obs.n
-        self._cache.clear()
+                next(self._pass)
         self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None)
 
     def _tissue_log(self) -> float:
