@@ -203,19 +203,6 @@ class IncrementalGP:
         self._w[:n] = w
 
 
-KERNEL_ITERATIONS = 10  # L-BFGS steps a relearn takes (from the kernel before): bounded work, no spike mid-scan
-
-
-def _bounded_lbfgs(objective, theta0, bounds):
-    """scikit-learn's own optimiser (L-BFGS-B) with at most KERNEL_ITERATIONS steps: each relearn starts
-    where the last ended, so the kernel still converges as the readings grow, a few steps at a time."""
-    from scipy.optimize import minimize
-
-    result = minimize(objective, theta0, method="L-BFGS-B", jac=True, bounds=bounds,
-                      options={"maxiter": KERNEL_ITERATIONS})
-    return result.x, result.fun
-
-
 def fit_hyper(xy: np.ndarray, y: np.ndarray, noise_var: np.ndarray, start: Hyper,
               length_bounds_mm: tuple[float, float], white_floor_var: float) -> Hyper:
     """Maximum-marginal-likelihood Matérn field and white noise, the background plane's priors fixed."""
@@ -231,8 +218,7 @@ def fit_hyper(xy: np.ndarray, y: np.ndarray, noise_var: np.ndarray, start: Hyper
         math.sqrt(start.level_var / start.slope_var), "fixed")
     white_bounds = (white_floor_var, max(1.0, 2.0 * white_floor_var))
     white = WhiteKernel(float(np.clip(start.white_var, *white_bounds)), white_bounds)
-    gpr = GaussianProcessRegressor(field + plane + white, alpha=noise_var + JITTER, normalize_y=False,
-                                   optimizer=_bounded_lbfgs)
+    gpr = GaussianProcessRegressor(field + plane + white, alpha=noise_var + JITTER, normalize_y=False)
     with warnings.catch_warnings():  # a bound reached is an answer here, not a problem
         warnings.simplefilter("ignore", ConvergenceWarning)
         gpr.fit(xy / scale, y - start.mean)
