@@ -90,9 +90,10 @@ class PalpationSettings(_Section):
     # ± modulation_mm at modulation_hz; each cycle's force against depth gives one stiffness point.
     mode: Literal["discrete", "sliding"] = "discrete"
     sliding_depth_mm: Annotated[float, Field(gt=0, le=30)] = 2.5
-    sliding_speed_mm_s: Annotated[float, Field(gt=0, le=50)] = 5.0
+    sliding_speed_mm_s: Annotated[float, Field(gt=0, le=50)] = 30.0
+    sliding_length_mm: Annotated[float, Field(gt=0, le=500)] = 30.0  # one path of the active planner
     modulation_mm: Annotated[float, Field(gt=0, le=10)] = 1.0
-    modulation_hz: Annotated[float, Field(gt=0, le=20)] = 2.0
+    modulation_hz: Annotated[float, Field(gt=0, le=20)] = 10.0
 
     @model_validator(mode="after")
     def _hysteresis(self):

@@ -21,6 +21,7 @@ class SlidingPoint:
     stiffness_n_per_mm: float
     stiffness_se_n_per_mm: float
     samples: int
+    model: str = "sliding-linear"  # a probe's fit: F = k·(d + δ) over one modulation cycle
 
 
 def stiffness_points(record, settings) -> list[SlidingPoint]:

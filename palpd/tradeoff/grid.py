@@ -4,8 +4,9 @@ A grid file (TOML) lists them as `[[run]]` tables:
 
     [[run]]
     strategy = "active"          # active | raster | random
-    palpation = "discrete"       # discrete (the default)
+    palpation = "discrete"       # discrete (the default) | sliding (active or raster)
     palpations = 40              # the budget: active's learner.max_palpations, the raster's or random count
+                                 # (sliding: paths, a raster's rows)
     settings = { learner = { tolerance_mm = 1.0 } }   # any settings, as in palpd.toml
 """
 from __future__ import annotations
@@ -25,7 +26,7 @@ class GridEntry(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     strategy: Literal["active", "raster", "random"]
-    palpation: Literal["discrete"] = "discrete"
+    palpation: Literal["discrete", "sliding"] = "discrete"
     palpations: Annotated[int, Field(ge=1, le=10000)] | None = None
     settings: dict[str, dict[str, Any]] = {}
 
@@ -43,7 +44,8 @@ def _entries(*rows: dict) -> list[GridEntry]:
 
 
 # The knobs a user turns: active's stop rule (tolerance, confidence) and indentation (depth, speed) at its
-# default budget; raster and random at counts from a quick look to the seed paper's 81.
+# default budget; raster and random at counts from a quick look to the seed paper's 81; sliding at speeds
+# from 10 to 40 mm/s (the modulation faster with the speed: a reading every 2.5-4 mm of path) and as a raster.
 DEFAULT_GRID = _entries(
     {"strategy": "active"},
     *({"strategy": "active", "settings": {"learner": {"tolerance_mm": t}}} for t in (0.25, 1.0, 2.0)),
@@ -52,6 +54,12 @@ DEFAULT_GRID = _entries(
     *({"strategy": "active", "settings": {"palpation": {"speed_mm_s": v}}} for v in (5.0, 20.0)),
     *({"strategy": "raster", "palpations": n} for n in (9, 25, 49, 81)),
     *({"strategy": "random", "palpations": n} for n in (9, 25, 49)),
+    {"strategy": "active", "palpation": "sliding"},
+    *({"strategy": "active", "palpation": "sliding",
+       "settings": {"palpation": {"sliding_speed_mm_s": v, "modulation_hz": hz}}} for v, hz in ((10.0, 4.0),
+                                                                                             (20.0, 8.0))),
+    {"strategy": "active", "palpation": "sliding", "settings": {"palpation": {"sliding_speed_mm_s": 40.0}}},
+    {"strategy": "raster", "palpation": "sliding", "palpations": 7},
 )
 
 
@@ -94,7 +102,8 @@ def _settings(base, entry: GridEntry, seed: int):
     from palpd.errors import ConfigError
 
     try:
-        return base.updated(**{**entry.settings, "scan": {**entry.settings.get("scan", {}),
-                                                          "strategy": entry.strategy, "seed": seed}})
+        sections = entry.settings
+        return base.updated(**{**sections, "scan": {**sections.get("scan", {}), "strategy": entry.strategy, "seed": seed},
+                               "palpation": {**sections.get("palpation", {}), "mode": entry.palpation}})
     except (ConfigError, KeyError) as exc:
         raise UsageError(f"tradeoff grid, run {entry.strategy} {entry.label}: {exc}") from None
