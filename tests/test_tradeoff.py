@@ -23,6 +23,12 @@ palpations = 1
 strategy = "active"
 palpations = 2
 settings = { learner = { tolerance_mm = 2.0 } }
+
+[[run]]
+strategy = "active"
+palpation = "sliding"
+palpations = 1
+settings = { palpation = { sliding_length_mm = 6.0 } }
 """
 
 
@@ -37,7 +43,7 @@ def dask_cluster(tmp_path_factory):
     scheduler = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host", "127.0.0.1",
                                   "--port", "0", *common], cwd=where, env=env, stderr=subprocess.DEVNULL)
     worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", "--host", "127.0.0.1",
-                               "--nworkers", "1", "--nthreads", "1", *common], cwd=where, env=env,
+                               "--no-nanny", "--nthreads", "1", *common], cwd=where, env=env,
                               stderr=subprocess.DEVNULL)
     try:
         yield _address(scheduler_file)
@@ -75,12 +81,14 @@ def cluster_sweep(dask_cluster, tmp_path_factory):
 def test_a_sweep_on_a_dask_cluster_writes_the_rows_and_the_front(cluster_sweep):
     code, out, rows = cluster_sweep
     assert code == 0 and not (out / "failures.csv").exists()
-    assert list(rows[0]) == COLUMNS and len(rows) == 4  # 2 seeds × 2 settings, in the grid's order
-    assert [(r["seed"], r["strategy"], r["setting"]) for r in rows] == [
-        ("0", "raster", "n=1"), ("0", "active", "n=2;tolerance_mm=2.0"),
-        ("1", "raster", "n=1"), ("1", "active", "n=2;tolerance_mm=2.0")]
-    assert all(r["palpation"] == "discrete" and r["lumps_true"] == "1" for r in rows)
-    assert [r["palpations"] for r in rows] == ["1", "2", "1", "2"]  # each run stopped by its own budget
+    assert list(rows[0]) == COLUMNS and len(rows) == 6  # 2 seeds × 3 settings, in the grid's order
+    entries = [("raster", "discrete", "n=1"), ("active", "discrete", "n=2;tolerance_mm=2.0"),
+               ("active", "sliding", "n=1;sliding_length_mm=6.0")]
+    assert [(r["seed"], r["strategy"], r["palpation"], r["setting"]) for r in rows] == [
+        (seed, *entry) for seed in "01" for entry in entries]
+    assert all(r["lumps_true"] == "1" for r in rows)
+    assert [r["palpations"] for r in rows if r["palpation"] == "discrete"] == ["1", "2", "1", "2"]  # own budgets
+    assert all(int(r["palpations"]) >= 2 for r in rows if r["palpation"] == "sliding")  # readings along one path
     assert (out / "pareto.png").stat().st_size > 10_000 and (out / "settings.csv").exists()
 
 
@@ -97,10 +105,10 @@ def test_the_process_pool_gives_the_cluster_its_rows_and_failures_stay_per_run(c
     lost = paper.model_copy(update={"tissue": paper.tissue.model_copy(update={"map": str(out / "gone.csv")})})
     runs = grid.runs([paper, lost], 2, grid.load_grid(out / "grid.toml"), Settings())
     monkeypatch.setattr(schedulers, "has_distributed", lambda: False)
-    results = schedulers.execute(run_one, runs[:4] + runs[-2:-1], "local", workers=1)
-    as_csv = [{k: "" if v is None else str(v) for k, v in row.items()} for row, _ in results[:4]]
-    assert as_csv == cluster_rows
-    assert results[4][0] is None and "gone.csv" in results[4][1]
+    results = schedulers.execute(run_one, runs[3:6] + runs[-3:-2], "local", workers=1)  # seed 1, and a lost one
+    as_csv = [{k: "" if v is None else str(v) for k, v in row.items()} for row, _ in results[:3]]
+    assert as_csv == cluster_rows[3:]
+    assert results[3][0] is None and "gone.csv" in results[3][1]
 
 
 def test_a_failing_task_on_the_cluster_is_reported_as_its_own(dask_cluster):
