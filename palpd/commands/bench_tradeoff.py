@@ -104,7 +104,7 @@ def _table(summary: list[dict], leads: list[dict], runs: int, failed: int) -> st
                      f"{s['palpations']:10.1f}  {s['robot_time_s']:7.1f}  {s['iou']:.3f}{'*' if s['front_iou'] else ' '}"
                      f"  {_mm(s['center_error_mm'])}{'*' if s['front_center'] else ''}")
     if leads:
-        lines.append("per scene: best active IoU within raster's median robot time vs raster's median IoU")
+        lines.append("per scene: best active IoU within the discrete raster's median robot time vs its median IoU")
         for lead in leads:
             best = "none that fast" if lead["best_active_iou"] is None else (
                 f"{lead['best_active_iou']:.3f} ({lead['lead']:+.3f})")

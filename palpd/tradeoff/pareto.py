@@ -46,10 +46,11 @@ def _dominates(a: dict, b: dict, metric: str, sign: int) -> bool:
 
 
 def per_scene_lead(rows: list[dict]) -> list[dict]:
-    """For each scene: raster's median robot time and IoU, and the best active run within that time."""
+    """For each scene: the discrete raster's median robot time and IoU (the seed paper's way, over its counts
+    and seeds), and the best active run (discrete or sliding) within that time."""
     out = []
     for scene in sorted({r["scene"] for r in rows}):
-        raster = [r for r in rows if r["scene"] == scene and r["strategy"] == "raster"]
+        raster = [r for r in rows if r["scene"] == scene and r["strategy"] == "raster" and r["palpation"] == "discrete"]
         if not raster:
             continue
         time_s, iou = median(r["robot_time_s"] for r in raster), median(r["iou"] for r in raster)
