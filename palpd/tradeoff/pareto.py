@@ -62,7 +62,8 @@ def per_scene_lead(rows: list[dict]) -> list[dict]:
     return out
 
 
-COLOURS = {"active": "tab:blue", "raster": "tab:orange", "random": "tab:green", "sliding": "tab:red"}
+COLOURS = {("active", "discrete"): "tab:blue", ("active", "sliding"): "tab:red",
+           ("raster", "discrete"): "tab:orange", ("raster", "sliding"): "tab:purple", ("random", "discrete"): "tab:green"}
 
 
 def plot(rows: list[dict], summary: list[dict], path) -> None:
@@ -87,14 +88,15 @@ def plot(rows: list[dict], summary: list[dict], path) -> None:
 
 
 def _panel(ax, rows, summary, metric: str, flag: str) -> None:
-    for strategy, colour in COLOURS.items():
-        runs = [r for r in rows if r["strategy"] == strategy and r[metric] is not None]
+    for (strategy, palpation), colour in COLOURS.items():
+        runs = [r for r in rows if (r["strategy"], r["palpation"]) == (strategy, palpation) and r[metric] is not None]
         ax.scatter([r["robot_time_s"] for r in runs], [r[metric] for r in runs], s=6, alpha=0.25, color=colour)
-        mine = [s for s in summary if s["strategy"] == strategy and math.isfinite(s[metric])]
+        mine = [s for s in summary if (s["strategy"], s["palpation"]) == (strategy, palpation)
+                and math.isfinite(s[metric])]
         ax.scatter([s["robot_time_s"] for s in mine], [s[metric] for s in mine], s=40, color=colour,
-                   edgecolors="black", label=strategy if mine else None)
+                   edgecolors="black", label=f"{strategy} {palpation}" if mine else None)
     front = [s for s in summary if s[flag] and math.isfinite(s[metric])]
     ax.step([s["robot_time_s"] for s in front], [s[metric] for s in front], where="post", color="black", lw=1)
     for s in front:
-        ax.annotate(f"{s['strategy']} {s['setting']}", (s["robot_time_s"], s[metric]), fontsize=7,
+        ax.annotate(f"{s['strategy']}{' sliding' if s['palpation'] == 'sliding' else ''} {s['setting']}", (s["robot_time_s"], s[metric]), fontsize=7,
                     xytext=(4, 4), textcoords="offset points")
