@@ -19,12 +19,14 @@ from palpd.slide import slide
 from palpd.stiffness.sliding import stiffness_points
 from test_faults import Watch
 
+FRICTION = 0.3  # a wet tissue under a smooth probe
 AGREEMENT = 0.03  # sliding vs discrete stiffness at the same spot, away from an edge (default sliding settings)
 
 
 @pytest.fixture(scope="module")
 def paper_bench():
-    settings, scene = Settings(), load_scene(SCENES / "paper.toml")
+    settings, paper = Settings(), load_scene(SCENES / "paper.toml")
+    scene = paper.model_copy(update={"tissue": paper.tissue.model_copy(update={"friction": FRICTION})})
     bench = open_simulated_bench(settings, scene, seed=0)
     p = settings.palpation
     bench.servo.start()
@@ -55,7 +57,7 @@ def test_the_tissue_drags_the_sliding_tip_and_the_drag_is_measured(paper_bench):
     task = SlidingPalpation((-25.0, 20.0), (-5.0, 20.0), settings.palpation)  # background: ~0.3 N pressed
     bench.servo.run(task)
     normal = sum(task.record.force_n) / len(task.record.force_n)
-    friction = load_scene(SCENES / "paper.toml").tissue.friction
+    friction = FRICTION
     assert friction * normal * 0.5 < task.record.max_lateral_n < friction * task.record.max_force_n * 1.5 + 0.05
     assert len(stiffness_points(task.record, settings.palpation)) >= 5
 

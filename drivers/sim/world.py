@@ -160,7 +160,9 @@ class SimWorld:
         depth_mm = -1000.0 * tip[2]
         if depth_mm <= 0.0:
             return NO_FORCE
-        vx, vy, vz = (1000.0 * v for v in self.frame.vector_from_robot(model.tip_velocity(q, tuple(self.arm.qd))))
+        vx = vy = vz = 0.0
+        if self._tissue.damping_n_s_per_mm or self._tissue.friction:  # the Jacobian costs: only when it matters
+            vx, vy, vz = (1000.0 * v for v in self.frame.vector_from_robot(model.tip_velocity(q, tuple(self.arm.qd))))
         k = self.felt_stiffness(1000.0 * tip[0], 1000.0 * tip[1])
         normal_n = hunt_crossley_n(k, self._tissue.exponent, self._tissue.damping_n_s_per_mm, depth_mm, -vz)
         normal_n += self.faults.extra_normal_force_n(1000.0 * tip[0], 1000.0 * tip[1], depth_mm)
