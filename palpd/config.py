@@ -88,11 +88,21 @@ class PalpationSettings(_Section):
     contact_off_n: Positive = 0.03
     force_axes: Literal["tissue", "sensor_z"] = "tissue"
     tare_samples: Annotated[int, Field(ge=1, le=10000)] = 200
+    # "sliding": stay in contact at sliding_depth_mm and move along a path, the indentation modulated by
+    # ± modulation_mm at modulation_hz; each cycle's force against depth gives one stiffness point.
+    mode: Literal["discrete", "sliding"] = "discrete"
+    sliding_depth_mm: Annotated[float, Field(gt=0, le=30)] = 2.5
+    sliding_speed_mm_s: Annotated[float, Field(gt=0, le=50)] = 30.0
+    sliding_length_mm: Annotated[float, Field(gt=0, le=500)] = 30.0  # one path of the active planner
+    modulation_mm: Annotated[float, Field(gt=0, le=10)] = 1.0
+    modulation_hz: Annotated[float, Field(gt=0, le=20)] = 10.0
 
     @model_validator(mode="after")
     def _hysteresis(self):
         if self.contact_off_n >= self.contact_on_n:
             raise ValueError("contact_off_n must be below contact_on_n (hysteresis)")
+        if self.modulation_mm >= self.sliding_depth_mm:
+            raise ValueError("modulation_mm must be below sliding_depth_mm (the probe keeps contact)")
         return self
 
 
@@ -105,6 +115,7 @@ class StiffnessSettings(_Section):
 
 class SafetySettings(_Section):
     force_cap_n: Positive = 6.0
+    max_lateral_force_n: Positive = 2.0  # drag or shear along the surface (sliding palpation): above it, a stop
     workspace_margin_mm: NonNegative = 15.0
     max_tip_speed_mm_s: Positive = 400.0
     workspace_z_mm: tuple[Finite, Finite] = (-20.0, 80.0)  # tip height range above the tissue surface

@@ -71,7 +71,10 @@ class FixedPlan:
 
 
 def plan(strategy: str, size_mm, max_palpations: int, seed: int, settings=None):
-    """The planner for a strategy; `active` is the online learner (settings: palpd.config.Settings)."""
+    """The planner for a strategy; `active` is the online learner (settings: palpd.config.Settings).
+    With palpation.mode = "sliding" the plan is of paths (palpd.slide)."""
+    if settings is not None and settings.palpation.mode == "sliding":
+        return _sliding_plan(strategy, size_mm, max_palpations, seed, settings)
     if strategy == "raster":
         return FixedPlan(strategies.raster_points(size_mm, max_palpations))
     if strategy == "random":
@@ -82,6 +85,25 @@ def plan(strategy: str, size_mm, max_palpations: int, seed: int, settings=None):
 
         return ActivePlanner(size_mm, settings or Settings(), max_palpations, seed)
     raise UsageError(f"unknown strategy {strategy!r}; choose from {', '.join(strategies.STRATEGIES)}")
+
+
+def _sliding_plan(strategy: str, size_mm, max_palpations: int, seed: int, settings):
+    from palpd import slide
+
+    if strategy == "raster":
+        return FixedPlan(slide.raster_paths(size_mm, max_palpations))
+    if strategy == "active":
+        return slide.SlidingPlanner(size_mm, settings, max_palpations, seed)
+    raise UsageError(f"strategy {strategy!r} has no sliding plan; slide with raster or active")
+
+
+def palpations(bench: Bench, settings, planned) -> list[Probe]:
+    """What one planned palpation reads: a point pressed once, or a path slid along (a reading per cycle)."""
+    if settings.palpation.mode == "sliding":
+        from palpd.slide import slide
+
+        return slide(bench, settings, planned)
+    return [palpate(bench, settings, planned)]
 
 
 def palpate(bench: Bench, settings, xy_mm) -> Probe:
@@ -120,16 +142,18 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     try:
         servo.start()  # homes the arm first, supervised: after a category-0 stop it may lie anywhere
         xy = planner.next_probe()
-        first = (xy[0], xy[1], p.clearance_mm) if xy is not None else (0.0, 0.0, p.clearance_mm)
+        start = (0.0, 0.0) if xy is None else (xy[0] if p.mode == "sliding" else xy)
+        first = (start[0], start[1], p.clearance_mm)
         servo.run(MoveTo(first, p.travel_speed_mm_s, p.accel_mm_s2))
         tare = HoldAndCollect(p.tare_samples, where=first)
         servo.run(tare)
         servo.forces.tare(tare.samples)
         while xy is not None:
-            probes.append(palpate(bench, settings, xy))
-            planner.observe(probes[-1])
-            if progress:
-                progress(len(probes), max(planner.expected_total, len(probes)), probes[-1])
+            for probe in palpations(bench, settings, xy):
+                probes.append(probe)
+                planner.observe(probe)
+                if progress:
+                    progress(len(probes), max(planner.expected_total, len(probes)), probe)
             xy = planner.next_probe()
         servo.stop()  # parks at the rest pose, then the amplifiers go off
     except ScanFault:
@@ -139,6 +163,7 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     lumps, verdict, model = _estimate(planner, probes, settings)
     body = {
         "strategy": settings.scan.strategy,
+        "palpation": p.mode,
         "seed": settings.scan.seed,
         "palpations": len(probes),
         "robot_time_s": round(bench.clock.now() - robot_start, 3),
