@@ -2,50 +2,19 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from typing import Callable
 
 from palpd import strategies
 from palpd.bench import Bench
+from palpd.config import RATE_MODELS
+from palpd.control.contact import contact_thresholds
 from palpd.control.palpation import Palpation, PalpationRecord
+from palpd.probe import Probe, judge
 from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.errors import ScanFault, UsageError
 from palpd.estimate import estimate_lumps
-from palpd.stiffness import FitRejected, StiffnessResult
-from palpd.stiffness.palpation import fit_palpation
 
 PARK_HEIGHT_MM = 20.0  # a single probe (probe.at) backs out this high before the servo parks the arm
-
-
-@dataclass
-class Probe:
-    record: PalpationRecord
-    fit: StiffnessResult | None
-    rejected: str | None = None
-
-    @property
-    def stiffness_n_per_mm(self) -> float | None:
-        return self.fit.stiffness_n_per_mm if self.fit else None
-
-    @property
-    def outcome(self) -> str:
-        if self.fit is not None:
-            return "fit"
-        return "no_contact" if self.record.stop_reason == "no_contact" else "rejected"
-
-    def as_dict(self) -> dict:
-        # A failed palpation has no contact point: it is reported where it was aimed.
-        xy = self.record.xy_mm if self.fit is not None else self.record.target_xy_mm
-        out = {"target_xy_mm": [round(v, 3) for v in self.record.target_xy_mm], "xy_mm": [round(v, 3) for v in xy],
-               "outcome": self.outcome,
-               "stiffness_n_per_mm": None if self.fit is None else round(self.fit.stiffness_n_per_mm, 5)}
-        if self.fit is not None:
-            out["stiffness_se_n_per_mm"] = round(self.fit.stiffness_se_n_per_mm, 6)
-            out["stiffness_model"] = self.fit.model
-            out["max_force_n"] = round(self.record.max_force_n, 4)
-        else:
-            out["rejected"] = self.rejected
-        return out
 
 
 class FixedPlan:
@@ -85,15 +54,13 @@ def plan(strategy: str, size_mm, max_palpations: int, seed: int, settings=None):
 
 
 def palpate(bench: Bench, settings, xy_mm) -> Probe:
-    """One palpation through the servo loop, then its stiffness fit."""
-    palpation = Palpation(xy_mm, settings.palpation)
+    """One palpation through the servo loop (contact thresholds scaled to the noise the last tare measured),
+    then its contact point found from the whole trace and its stiffness fit, or a named outcome."""
+    thresholds = contact_thresholds(settings.palpation, getattr(bench.servo.forces, "noise", None),
+                                    settings.servo.rate_hz)
+    palpation = Palpation(xy_mm, settings.palpation, thresholds)
     bench.servo.run(palpation)
-    record = palpation.record
-    try:
-        return Probe(record, fit_palpation(record, settings.stiffness, settings.servo.rate_hz))
-    except FitRejected as exc:
-        reason = "no contact found" if record.stop_reason == "no_contact" else str(exc)
-        return Probe(record, None, reason)
+    return judge(palpation.finish(refit_onset=settings.stiffness.model not in RATE_MODELS), settings)
 
 
 def _estimate(planner, probes: list[Probe], settings) -> tuple[list, str, dict | None]:

@@ -15,7 +15,8 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from palpd.bus.messages import SAMPLES_CHANNEL
-from palpd.control.segment import Segmenter
+from palpd.control.onset import refine
+from palpd.control.palpation import palpation_segmenter
 from palpd.daemon.jobs import resolved_scan
 from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.mcap import read_messages
@@ -61,14 +62,23 @@ def resegmented(trace: dict, samples: list, settings) -> dict:
     start, stop = bisect.bisect_left(times, t0), bisect.bisect_right(times, t1)
     if start == len(times) or times[start] != t0 or times[stop - 1] != t1:
         return trace  # not every tick of it was recorded
-    segmenter = Segmenter(settings.palpation.contact_on_n, settings.palpation.contact_off_n)
+    p = settings.palpation
+    segmenter = palpation_segmenter(trace.get("contact_on_n", p.contact_on_n), trace.get("contact_off_n", p.contact_off_n),
+                                    trace.get("contact_filter_s", 0.0))
+    t_armed = trace.get("t_start_s", t0)
+    best = None
     for t, tip, force in samples[start:stop]:
+        segmenter.armed = t >= t_armed
         segment = segmenter.push(t, tip, force)
-        if segment is not None:
-            return trace | {"xy_mm": list(segment.xy_mm), "depth_mm": segment.depth_mm, "force_n": segment.force_n,
-                            "unload_depth_mm": segment.unload_depth_mm, "unload_force_n": segment.unload_force_n,
-                            "segmented": True}
-    return trace | {"depth_mm": [], "force_n": [], "unload_depth_mm": [], "unload_force_n": [], "segmented": True}
+        if segment is not None and (best is None or segment.peak_force_n > best.peak_force_n):
+            best = segment
+    if best is None:
+        return trace | {"depth_mm": [], "force_n": [], "unload_depth_mm": [], "unload_force_n": [], "segmented": True}
+    best.force_lead_s = trace.get("force_lead_s", 0.0)
+    refine(best)
+    return trace | {"xy_mm": list(best.xy_mm), "depth_mm": best.depth_mm, "force_n": best.force_n,
+                    "unload_depth_mm": best.unload_depth_mm, "unload_force_n": best.unload_force_n,
+                    "segmented": True}
 
 
 def replay(session_dir: Path, settings) -> dict:
@@ -104,7 +114,8 @@ def refit(trace: dict, settings) -> tuple[float | None, float]:
                              unload_depth_mm=trace.get("unload_depth_mm", []),
                              unload_force_n=trace.get("unload_force_n", []))
     try:
-        fit = fit_palpation(record, settings.stiffness, settings.servo.rate_hz)
+        fit = fit_palpation(record, settings.stiffness, settings.servo.rate_hz,
+                            settings.palpation.speed_profile == "varying")
     except FitRejected:
         return None, 0.0
     return fit.stiffness_n_per_mm, fit.stiffness_se_n_per_mm

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.special import fdtrc
 
 from palpd.stiffness.fit import ModelFit, fit_model
 from palpd.stiffness.models import MODELS, candidates
@@ -20,6 +21,7 @@ from palpd.stiffness.samples import FitRejected, check_rise, prepare
 CRITERIA = ("aicc", "bic")
 CLEARLY_BETTER = 2.0  # Burnham & Anderson: a difference below 2 is no real support
 SELECT = "select"
+CURVATURE_P = 1e-3  # a curved model is tried only when a straight line is this unlikely to leave such curvature
 
 
 @dataclass(frozen=True)
@@ -109,4 +111,14 @@ def _clearly_curved(samples, criterion: str) -> bool:
         solution, *_ = np.linalg.lstsq(design, f, rcond=None)
         residual = f - design @ solution
         rss.append(float(residual @ residual))
-    return _criterion(rss[1], n, 3, criterion) < _criterion(rss[0], n, 2, criterion) - CLEARLY_BETTER
+    by_criterion = _criterion(rss[1], n, 3, criterion) < _criterion(rss[0], n, 2, criterion) - CLEARLY_BETTER
+    return by_criterion and _curvature_p(rss[0], rss[1], n) < CURVATURE_P
+
+
+def _curvature_p(rss_line: float, rss_parabola: float, n: int) -> float:
+    """The exact F-test of the parabola's one extra term: an information criterion's asymptotics do not hold
+    for a dozen samples, where noise alone bends a trace often enough to pass BIC by the margin."""
+    if rss_parabola <= 0.0:
+        return 0.0 if rss_line > 0.0 else 1.0
+    f_stat = (rss_line - rss_parabola) / (rss_parabola / (n - 3))
+    return float(fdtrc(1, n - 3, max(f_stat, 0.0)))
