@@ -21,7 +21,8 @@ from palpd.control.tasks import MoveTo
 
 Vec3 = tuple[float, float, float]
 NO_CONTACT_MARGIN_MM = 10.0  # how far below the nominal surface to look before giving up
-LOOKBACK_S = 1.5  # the approach kept for finding the contact point again: clearance to the margin at 20 mm/s
+SLOW_ZONE_MM = 2.0  # above the nominal surface, the approach slows to the indentation speed
+LOOKBACK_S = 2.5  # the approach kept for finding the contact point again: from the slow zone to the margin
 # speed_profile = "varying": the indentation speed swings between (1 - SWING) and (1 + SWING) times
 # speed_mm_s, SPEED_CYCLES times over the depth, so the same depths are pressed slowly and quickly.
 SPEED_SWING = 0.8
@@ -108,7 +109,10 @@ class Palpation:
             self.record.contact_z_mm = self.segmenter.current.contact_z_mm
             self._phase = "indent"
             return self._indent(tick, 0.0)
-        self._target_z -= self.s.approach_speed_mm_s * dt
+        # Within SLOW_ZONE_MM of the surface the approach already moves at the indentation speed, so contact
+        # begins at the speed the press goes on at: no start-up transient when the threshold fires.
+        near = self._target_z <= SLOW_ZONE_MM
+        self._target_z -= (min(self.s.speed_mm_s, self.s.approach_speed_mm_s) if near else self.s.approach_speed_mm_s) * dt
         if self._target_z < -(self.s.depth_mm + NO_CONTACT_MARGIN_MM):
             self._start_retract(tick, "no_contact")
         return self._setpoint()

@@ -53,7 +53,7 @@ class Segmenter:
         self.min_peak_n, self.min_depth_mm = min_peak_n, min_depth_mm
         self.baseline_time_s, self.filter_s, self.lookback_s = baseline_time_s, filter_s, lookback_s
         self.baseline_n = baseline_n  # None: the first sample (an untared stream); a tared one starts at 0
-        self.armed = True  # False: the zero is tracked and the approach kept, but no contact is detected
+        self._armed = True
         self.current: Segment | None = None
         self.rejected = 0  # contacts too slight to be palpations (brushes, noise)
         self.dropped = 0  # samples whose force was NaN or infinite
@@ -64,6 +64,17 @@ class Segmenter:
         self._trace: list[tuple[float, float]] = []  # (depth, force) since onset
         self._before: deque = deque()  # raw samples of the approach, for the onset refit
         self._raw: list = []
+
+    @property
+    def armed(self) -> bool:
+        """False: the zero is tracked, but no contact is detected (a palpation's travel above the point)."""
+        return self._armed
+
+    @armed.setter
+    def armed(self, value: bool) -> None:
+        if value and not self._armed:
+            self._before.clear()  # the approach starts here: travel (and its inertial forces) is not kept
+        self._armed = value
 
     @property
     def filtered_n(self) -> float | None:
