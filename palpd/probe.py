@@ -4,7 +4,8 @@
 it gave a stiffness is `too_stiff`, a censored reading: the stiffness is at least the force reached over the
 deepest indentation (plus two encoder steps, so the bound never overstates it); one that pressed to full
 depth with no force rising out of the noise is `too_soft`: at most that force (plus three noise sds) over
-that depth. Neither is missing data: the learner takes them as bounds.
+that depth, or, when the threshold never fired all the way down yet the trace shows a rise too faint to fit,
+at most the threshold over the depth reached below the nominal surface. Neither is missing data: the learner takes them as bounds.
 """
 from __future__ import annotations
 
@@ -70,6 +71,10 @@ def judge(record: PalpationRecord, settings) -> Probe:
 
 def _unfitted(record: PalpationRecord, exc: FitRejected) -> Probe:
     deepest_mm = max(record.depth_mm, default=0.0)
+    if record.stop_reason == "no_contact":  # the threshold never fired all the way down, and no rise fits
+        bound = record.contact_on_n / max(-record.lowest_z_mm, DEPTH_RESOLUTION_MM)
+        return Probe(record, None, f"no force reached the contact threshold down to the margin ({exc})",
+                     "too_soft", bound)
     if exc.reason in NO_FIT and record.stop_reason == "force":
         bound = record.max_force_n / (deepest_mm + DEPTH_RESOLUTION_MM)
         return Probe(record, None, f"force limit before a stiffness ({exc})", "too_stiff", bound)

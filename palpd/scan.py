@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import time
+from collections import Counter
 from typing import Callable
 
 from palpd import strategies
@@ -74,6 +75,24 @@ def _estimate(planner, probes: list[Probe], settings) -> tuple[list, str, dict |
     return lumps, ("lumps" if lumps else "none") if good else "undetermined", None
 
 
+HINTS = {"no_contact": "check the tissue placement (tissue.origin_mm) and the force sensor",
+         "rejected": "check the sensor noise and the palpation depth and speed",
+         "too_soft": "press deeper (palpation.depth_mm) or check the force sensor",
+         "too_stiff": "lower the indentation speed or raise palpation.max_force_n"}
+WHAT = {"no_contact": "found no contact", "rejected": "gave no usable fit", "too_soft": "felt no force above the noise",
+        "too_stiff": "hit the force limit at once"}
+
+
+def failure_reason(probes: list) -> str | None:
+    """A sentence when fewer than half the palpations gave a stiffness or a bound, naming the commonest failure."""
+    informative = sum(pr.fit is not None or pr.stiffness_bound_n_per_mm is not None for pr in probes)
+    if not probes or informative * 2 >= len(probes):
+        return None
+    failed = Counter(pr.outcome for pr in probes if pr.fit is None)
+    outcome, count = failed.most_common(1)[0]
+    return f"{count} of {len(probes)} palpations {WHAT[outcome]}: {HINTS[outcome]}"
+
+
 def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Probe], None] | None = None) -> dict:
     """Palpate where the planner says until it says stop; returns the report body (without truth).
 
@@ -104,6 +123,9 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     finally:
         servo.stop()
     lumps, verdict, model = _estimate(planner, probes, settings)
+    failing = failure_reason(probes)
+    if failing:
+        verdict = "undetermined"  # palpations that keep failing decide nothing, least of all "no lump"
     body = {
         "strategy": settings.scan.strategy,
         "seed": settings.scan.seed,
@@ -112,11 +134,14 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
         "wall_time_s": round(time.monotonic() - wall_start, 3),
         "max_contact_force_n": round(servo.max_contact_force_n, 4),
         "faults": faults,
+        "outcomes": dict(Counter(pr.outcome for pr in probes)),
         "verdict": verdict,
         "model": model,
         "lumps": [lump.as_dict() for lump in lumps],
         "probes": [pr.as_dict() for pr in probes],
     }
+    if failing:
+        body["undetermined_reason"] = failing
     true_peak_n = servo.true_max_contact_force_n
     if true_peak_n is not None:  # in simulation: what the tissue really took, at every physics step
         body["truth"] = {"max_contact_force_n": round(true_peak_n, 4)}

@@ -51,6 +51,7 @@ class PalpationRecord:
     contact_off_n: float = 0.0
     contact_filter_s: float = 0.0
     noise_sd_n: float | None = None
+    lowest_z_mm: float = math.inf  # the deepest the tip went (tissue frame: the nominal surface is z = 0)
     force_lead_s: float = 0.0  # how much newer the force samples were than the tip readings (aligned for the fit)
 
     def __post_init__(self) -> None:
@@ -92,6 +93,7 @@ class Palpation:
         if self._last_t is None:
             self.record.t_first_tick_s = tick.t_s
         self._last_t = tick.motion_t_s
+        self.record.lowest_z_mm = min(self.record.lowest_z_mm, tick.tip_mm[2])
         found = self.segmenter.push(tick.t_s, tick.tip_mm, tick.normal_force_n, tick.sample.t_s)
         if found is not None and (self._segment is None or found.peak_force_n > self._segment.peak_force_n):
             self._segment = found  # a brush before the press is not the palpation

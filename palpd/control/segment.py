@@ -83,7 +83,8 @@ class Segmenter:
 
     @property
     def approach_samples(self) -> list:
-        """The raw (t, x, y, z, force less the zero) samples of the last lookback_s out of contact."""
+        """The raw (t, x, y, z, force less the zero) samples of the last lookback_s since the segmenter was armed
+        (before this tick's: in contact, those of any brief contact that ended too)."""
         base = self.baseline_n or 0.0
         return [(t, x, y, z, f - base) for t, x, y, z, f in self._before]
 
@@ -110,6 +111,7 @@ class Segmenter:
             else:
                 self._remember(t_s, tip_mm, force_n)
                 return None
+        self._remember(t_s, tip_mm, force_n)  # a contact that ends early stays in the approach of the next
         return self._continue(t_s, tip_mm, force_n)
 
     def _filter(self, force_n: float, dt: float) -> None:
@@ -138,7 +140,6 @@ class Segmenter:
         self._trace = []
         self._raw = self.approach_samples
         self.current.detected_at = len(self._raw)
-        self._before.clear()
 
     def _continue(self, t_s: float, tip_mm: Vec3, force_n: float) -> Segment | None:
         seg = self.current
