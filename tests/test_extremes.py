@@ -16,6 +16,7 @@ from palpd.control.onset import hinge
 from palpd.control.segment import Segmenter
 from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.scan import failure_reason, palpate
+from palpd.stiffness.palpation import depth_rate_mm_s
 from palpd.probe import Probe, judge
 from palpd.control.palpation import PalpationRecord
 
@@ -34,19 +35,21 @@ def tared_bench(scene):
     return bench
 
 
-def felt_n_per_mm(k, n, b, x_mm):
-    """dF/dx of k·xⁿ + b·xⁿ·v at the indentation speed v: what a press at that constant speed feels."""
-    return (k + b * SPEED_MM_S) * n * x_mm ** (n - 1.0)
+def felt_n_per_mm(k, n, b, x_mm, speed_mm_s=SPEED_MM_S):
+    """dF/dx of k·xⁿ + b·xⁿ·v at an indentation speed v: what a press at that constant speed feels."""
+    return (k + b * speed_mm_s) * n * x_mm ** (n - 1.0)
 
 
 def true_reading(probe, k, n, b):
-    """What the chosen model reads off the true force at the recorded depths: a straight line's slope over them
-    (a line fitted to a gently curved trace is its mean slope), else the tangent at the reference depth."""
-    if probe.fit.model not in ("linear", "linear-offset"):
-        return felt_n_per_mm(k, n, b, probe.fit.chosen.reference_depth_mm)
+    """The simulator's force law along the palpation's own motion (its speed sags below the commanded one as
+    the force grows), read as the chosen model reads it: a straight line's slope over the recorded depths (a
+    line fitted to a gently curved trace is its mean slope), else the tangent at the reference depth."""
     depth = np.asarray(probe.record.depth_mm)
+    rate = depth_rate_mm_s(depth, SETTINGS.servo.rate_hz)
+    if probe.fit.model not in ("linear", "linear-offset"):
+        return felt_n_per_mm(k, n, b, probe.fit.chosen.reference_depth_mm, float(np.median(rate)))
     x = np.maximum(depth - probe.record.contact_z_mm, 0.0)  # the true surface is at z = 0
-    return float(np.polyfit(depth, (k + b * SPEED_MM_S) * x**n, 1)[0])
+    return float(np.polyfit(depth, k * x**n + b * x**n * rate, 1)[0])
 
 
 def check_honest(probe, k, n, b):

@@ -9,7 +9,7 @@ observation noise).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.special import fdtrc
@@ -20,6 +20,7 @@ from palpd.stiffness.samples import FitRejected, check_rise, prepare
 
 CRITERIA = ("aicc", "bic")
 CLEARLY_BETTER = 2.0  # Burnham & Anderson: a difference below 2 is no real support
+NOT_EXCLUDED = 6.0  # Kass & Raftery: below 6 the evidence against a model is not strong; its reading counts
 SELECT = "select"
 CURVATURE_P = 1e-3  # a curved model is tried only when a straight line is this unlikely to leave such curvature
 
@@ -91,10 +92,18 @@ def _select(samples, criterion: str, reference_depth_mm: float) -> StiffnessResu
         raise FitRejected("no stiffness model could be fitted", "not_converged")
     best = min(scores.values())
     plausible = [(size, fit) for size, fit in fits if scores[fit.model] <= best + CLEARLY_BETTER]
-    chosen = min(plausible, key=lambda pair: pair[0])[1]
+    rivals = [fit for _, fit in fits if scores[fit.model] <= best + NOT_EXCLUDED]
+    chosen = _with_model_spread(min(plausible, key=lambda pair: pair[0])[1], rivals)
     if chosen.stiffness_n_per_mm <= 0:
         raise FitRejected(f"model {chosen.model} gives no positive stiffness", "no_rise")
     return StiffnessResult(chosen, criterion, scores)
+
+
+def _with_model_spread(chosen: ModelFit, plausible: list[ModelFit]) -> ModelFit:
+    """The chosen fit, its stiffness's standard error widened by how far the models not excluded read it:
+    when the data cannot tell a power law from an exponential, their tangents differ, and that is uncertainty."""
+    spread = max(abs(fit.stiffness_n_per_mm - chosen.stiffness_n_per_mm) for fit in plausible)
+    return replace(chosen, stiffness_se_n_per_mm=math.hypot(chosen.stiffness_se_n_per_mm, spread))
 
 
 def _clearly_curved(samples, criterion: str) -> bool:
