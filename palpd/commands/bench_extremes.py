@@ -33,7 +33,7 @@ def run(args) -> int:
 
     scenes = [load_scene_named(name) for name in args.scenes]  # every scene checked before the first scan
     settings = scan_settings(None, "active", args.max_palpations, args.seed)
-    rows = [HEADER, "|" + "---|" * HEADER.count("|")[:-1] if False else "|" + "---|" * (HEADER.count("|") - 1)]
+    rows = [HEADER, "|" + "---|" * (HEADER.count("|") - 1)]
     print(rows[0], flush=True)
     print(rows[1], flush=True)
     for scene in scenes:

@@ -51,7 +51,7 @@ def journal_entry(index: int, probe, t_s: float) -> dict:
         # how contact was judged (scaled to the measured noise) and aligned: replay cuts it again the same way
         "contact_on_n": record.contact_on_n, "contact_off_n": record.contact_off_n,
         "contact_filter_s": record.contact_filter_s, "force_lead_s": record.force_lead_s,
-        "dropped_samples": record.dropped_samples,
+        "dropped_samples": record.dropped_samples, "stiffness_bound_n_per_mm": probe.stiffness_bound_n_per_mm,
     }
 
 
@@ -84,7 +84,7 @@ class ScanJob:
         entry["recording"] = self.recording  # whose raw samples hold it (each run's servo clock starts anew)
         self.session.journal(entry)
         self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0,
-                               entry.get("target_xy_mm"))
+                               entry.get("target_xy_mm"), entry.get("outcome"), entry.get("stiffness_bound_n_per_mm"))
         publish_entry(worker, entry)
         worker.event("estimate", **self.estimator.estimate())
         worker.send({"kind": "map", "map": self.estimator.posterior_map()})  # made here: the learner is ours

@@ -68,7 +68,7 @@ def resegmented(trace: dict, samples: list, settings) -> dict:
     t_armed = trace.get("t_start_s", t0)
     best = None
     for t, tip, force in samples[start:stop]:
-        segmenter.armed = t >= t_armed
+        segmenter.armed = t > t_armed  # live, the task arms it after its segmenter has taken that tick
         segment = segmenter.push(t, tip, force)
         if segment is not None and (best is None or segment.peak_force_n > best.peak_force_n):
             best = segment
@@ -91,7 +91,8 @@ def replay(session_dir: Path, settings) -> dict:
         k, sd = refit(trace, settings)
         if trace.get("stiffness_n_per_mm") is not None and k is not None:
             worst_k = max(worst_k, abs(k - trace["stiffness_n_per_mm"]))
-        estimator.observe(trace["xy_mm"], k, sd, trace.get("target_xy_mm"))
+        outcome = "fit" if k is not None else trace.get("outcome")  # a censored reading stays a bound
+        estimator.observe(trace["xy_mm"], k, sd, trace.get("target_xy_mm"), outcome, trace.get("stiffness_bound_n_per_mm"))
     estimate = estimator.estimate()
     return {"palpations": len(traces), "segmented": sum(bool(t.get("segmented")) for t in traces), "max_stiffness_difference_n_per_mm": worst_k, "estimate": estimate,
             "recorded": recorded_estimate, "reproduced": same_lumps(estimate, recorded_estimate)}

@@ -76,7 +76,7 @@ def _select(samples, criterion: str, reference_depth_mm: float) -> StiffnessResu
     fits, scores = [], {}
     curved = _clearly_curved(samples, criterion)
     for candidate in candidates(samples.rate_mm_s is not None):
-        if candidate.name == "linear":
+        if candidate.name == "linear" and samples.n > 3:
             continue  # through the contact point: but that point is itself estimated, and its error would be k's
         if not (candidate.linear or curved):
             continue  # a curved model cannot win where even a parabola does no better than a line
