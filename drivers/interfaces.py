@@ -20,6 +20,7 @@ SAMPLE_SATURATED = 0x01
 SAMPLE_INVALID = 0x02
 SAMPLE_STALE = 0x04
 SAMPLE_GAP = 0x08  # samples were lost just before this one (a sequence gap); counted, not a reason to stop
+SAMPLE_REPEAT = 0x10  # no new reading since the last read: this is the last one again (SAMPLE_STALE if it lasts)
 
 
 @dataclass(slots=True)

@@ -14,6 +14,7 @@ from drivers.geometry import TissueFrame
 from drivers.phantom import model
 from palpd.control.controller import READING_AGE_PERIODS, CartesianPD
 from palpd.control.forces import ForceReader
+from palpd.control.health import SensorHealth
 from palpd.control.limits import NANO17_FORCE_RANGE_N, refuse_unsafe_configuration, rest_pose_mm
 from palpd.control.safety import SafetySupervisor
 from palpd.control.servo import ServoLoop
@@ -33,7 +34,34 @@ def open_bench(settings, scene, seed: int = 0, realtime: bool = False) -> Bench:
     """The simulated bench in this process for sim://, otherwise the hardware (or a `palpd simulate`) at the URLs."""
     if settings.robot.url.startswith("sim"):
         return open_simulated_bench(settings, scene, seed, realtime)
-    return open_hardware_bench(settings.updated(tissue=_placement(scene), sensor=_mount(scene)), scene)
+    return open_hardware_bench(placed_settings(settings, scene), scene)
+
+
+def placed_settings(settings, scene):
+    """The settings a bench runs with: a scene, when given, says where the tissue is and how the sensor is
+    mounted (on hardware it says nothing else); without one, the tissue and sensor sections do."""
+    if scene is None:
+        if settings.robot.url.startswith("sim"):
+            raise ConfigError("the simulated bench (robot.url sim://) needs a scene")
+        return settings
+    return settings.updated(tissue=_placement(scene), sensor=_mount(scene))
+
+
+def check_reach(settings, scene=None) -> None:
+    """Refuse, before any process or device is opened, a tissue placement the arm cannot reach (ConfigError:
+    one line naming where the placement comes from)."""
+    placed = placed_settings(settings, scene)
+    frame = TissueFrame(tuple(v / 1000.0 for v in placed.tissue.origin_mm))
+    source = "" if scene is None else f"scene {scene.name!r} (placement.origin_mm, tissue.size_mm): "
+    try:
+        model.inverse(frame.to_robot((0.0, 0.0, 0.0)))
+    except model.UnreachableError as exc:
+        raise ConfigError(f"{source}tissue.origin_mm {list(placed.tissue.origin_mm)}: the tissue's centre is out "
+                          f"of the arm's reach ({exc})") from None
+    try:
+        refuse_unsafe_configuration(placed, frame)
+    except ConfigError as exc:
+        raise ConfigError(f"{source}{exc}") from None
 
 
 def open_hardware_bench(settings, scene=None) -> Bench:
@@ -63,18 +91,8 @@ def _placement(scene) -> dict:
     return {"origin_mm": scene.placement.origin_mm, "size_mm": scene.tissue.size_mm}
 
 
-def simulated_settings(settings, scene):
-    """Settings as they must be for a simulated bench: the scene says where the tissue is."""
-    if not settings.robot.url.startswith("sim"):
-        raise ConfigError(f"robot.url is {settings.robot.url!r}, but a scene needs the simulated robot (sim://)")
-    return settings.updated(
-        tissue=_placement(scene),
-        sensor=_mount(scene),
-    )
-
-
 def open_simulated_bench(settings, scene, seed: int = 0, realtime: bool = False) -> Bench:
-    settings = simulated_settings(settings, scene)
+    settings = placed_settings(settings, scene)
     clock = RealClock() if realtime else VirtualClock()
     world = drivers.load_backend("drivers.sim.world", "SimWorld")(scene, clock, seed=seed)
     # The robot talks the bridge protocol to a simulated bridge, the sensor goes through the DAQ layer.
@@ -102,13 +120,17 @@ def _assemble(settings, robot, sensor, clock, world=None) -> Bench:
     control, period_s = settings.control, 1.0 / settings.servo.rate_hz
     # No command stays on longer than the bridge's hold plus half its ramp: the gains are designed for that.
     max_hold_s = settings.robot.hold_after_s + settings.robot.hold_ramp_s / 2
+    supervisor = SafetySupervisor(settings.safety, settings.tissue.size_mm, rest_pose_mm(frame), period_s)
+    health = SensorHealth(settings.safety, forces, settings.palpation.clearance_mm, period_s)
+    supervisor.add_monitor(health)
     servo = ServoLoop(
         robot, sensor, clock, frame,
         CartesianPD(control.stiffness_n_per_mm, control.damping_n_s_per_mm, settings.robot.current_limit_a,
                     settings.safety.force_cap_n, period_s, max_hold_s, control.velocity_filter_hz),
-        SafetySupervisor(settings.safety, settings.tissue.size_mm, rest_pose_mm(frame), period_s),
+        supervisor,
         forces, settings.servo.rate_hz, control.velocity_filter_hz,
         safety_settings=settings.safety, clear_z_mm=settings.palpation.clearance_mm, truth=world,
         drift_after_s=settings.robot.hold_after_s + settings.robot.hold_ramp_s,
     )
+    servo.health = health  # its summary (re-tares, largest drift) goes into the scan report
     return Bench(servo, clock, frame, settings.tissue.size_mm, world)

@@ -44,6 +44,11 @@ def curve_keys(server_key: str | Path | bytes, key: str | Path) -> dict:
         server_public = server_key
     else:
         server_public, _ = zmq.auth.load_certificate(str(server_key))
+    from palpd.bus.keyfiles import secret_key_problem
+
+    problem = secret_key_problem(key)  # as ssh does: a secret key others can read is refused, not used
+    if problem:
+        raise ValueError(problem)
     public, secret = zmq.auth.load_certificate(str(key))
     if secret is None:
         raise ValueError(f"{key} holds no secret key (use NAME.key_secret from `palpd keygen`)")
@@ -147,8 +152,8 @@ class Client:
             if left_s is not None and left_s <= 0:
                 raise TimeoutError(f"the scan did not end within {timeout_s:g} s")
             if statuses.poll(int(1000 * min(1.0, left_s if left_s is not None else 1.0))):
-                statuses.recv_multipart()  # any status event may be the end: ask for the current one
-                current = self.status()
+                statuses.recv_multipart()  # any status event may be the end
+            current = self.status()  # asked every second even when no event came (events on another endpoint)
         return current
 
     def stop_scan(self) -> Reply:

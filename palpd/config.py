@@ -1,6 +1,7 @@
 """Settings: pydantic models read from TOML, with PALPD_SECTION__KEY environment overrides.
 
-Unknown keys are refused at every level, so a typo never silently falls back to a default.
+Unknown keys are refused at every level, so a typo never silently falls back to a default. Safety and
+timing limits have upper bounds with reasons (palpd.settings_bounds), checked with the rules between settings.
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 from drivers.errors import describe_validation_error
 from drivers.tomlfile import read_toml
 from palpd.errors import ConfigError
+from palpd.settings_bounds import bound_problem, consistency_problem
 
 ENV_PREFIX = "PALPD_"
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -129,6 +131,13 @@ class SafetySettings(_Section):
     tracking_window_s: Annotated[float, Field(gt=0, le=5)] = 0.1  # ...for this long: the controller cannot follow
     retract_speed_mm_s: Annotated[float, Field(gt=0, le=200)] = 60.0  # controlled stop: back out, then park, this fast
     retract_timeout_s: Annotated[float, Field(gt=0, le=5)] = 0.5  # not backed out by then: cut the current
+    # Sensor health (palpd.control.health): a reading repeated this long is a frozen sensor; at every approach
+    # the force out of contact over drift_window_s is compared with the tare: re-tare beyond drift_retare_n,
+    # fault beyond drift_fault_n.
+    frozen_window_s: Positive = 0.003
+    drift_window_s: Positive = 0.05
+    drift_retare_n: Positive = 0.02
+    drift_fault_n: Positive = 0.5
 
 
 class ScanSettings(_Section):
@@ -174,7 +183,7 @@ class BusSettings(_Section):
 
 class DaemonSettings(_Section):
     state_dir: str = ""  # sessions live here; "" = $STATE_DIRECTORY (systemd) or ~/.local/state/palpd
-    scene: str = ""  # the simulated bench's scene (file or shipped name) while robot.url is sim://; "" = paper
+    scene: str = ""  # the simulated bench's scene (file or shipped name; "" = paper); on hardware: where the tissue is
     realtime: bool = True  # simulated bench on the wall clock (false: virtual time, as fast as the CPU allows)
     stop_timeout_s: Positive = 10.0  # SIGTERM/scan.stop: wait this long for the palpation to finish, then abort
     log_level: Literal["debug", "info", "warning", "error"] = "info"  # `palpd serve --log-level` overrides it
@@ -236,12 +245,24 @@ def load_settings(path: str | Path | None = None, environ: Mapping[str, str] | N
 
 
 def _validate(data: dict, source: str, overrides: dict | None = None) -> Settings:
+    def origin(dotted: str) -> str:
+        env_name = (overrides or {}).get(dotted, (None, None))[0]
+        return f"environment {env_name}" if env_name else source
+
+    out_of_bounds = bound_problem(data)
+    if out_of_bounds:
+        dotted, problem = out_of_bounds
+        raise ConfigError(f"{origin(dotted)}: {problem}")
     try:
-        return Settings.model_validate(data)
+        settings = Settings.model_validate(data)
     except ValidationError as exc:
         loc = ".".join(str(p) for p in exc.errors()[0]["loc"])
-        env_name = (overrides or {}).get(loc, (None, None))[0]
-        raise ConfigError(describe_validation_error(f"environment {env_name}" if env_name else source, exc)) from None
+        raise ConfigError(describe_validation_error(origin(loc), exc)) from None
+    inconsistent = consistency_problem(settings)
+    if inconsistent:
+        dotted, problem = inconsistent
+        raise ConfigError(f"{origin(dotted)}: {problem}")
+    return settings
 
 
 def _environment_overrides(environ: Mapping[str, str]) -> dict[str, tuple[str, object]]:

@@ -133,6 +133,7 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
         "robot_time_s": round(bench.clock.now() - robot_start, 3),
         "wall_time_s": round(time.monotonic() - wall_start, 3),
         "max_contact_force_n": round(servo.max_contact_force_n, 4),
+        "sensor": servo.health.summary(),  # re-tares at approaches and the largest drift found (control.health)
         "faults": faults,
         "outcomes": dict(Counter(pr.outcome for pr in probes)),
         "verdict": verdict,

@@ -11,7 +11,7 @@ from contextlib import ExitStack
 from importlib import resources
 from pathlib import Path
 
-from palpd.errors import UsageError
+from palpd.errors import ConfigError, UsageError
 
 SCENE_SUFFIX = ".toml"
 DEFAULT_SCENE = "paper"
@@ -41,7 +41,7 @@ def shipped_scene(name: str) -> Path:
 def resolve_scene(name_or_path: str | Path) -> Path:
     """An existing file as given, else the shipped scene of that name (with or without .toml).
 
-    A name that is neither is a usage error that lists the shipped scenes.
+    A name that is neither is a configuration error (exit 78, as a bad scene file) listing the shipped scenes.
     """
     path = Path(name_or_path)
     if path.exists():
@@ -49,7 +49,7 @@ def resolve_scene(name_or_path: str | Path) -> Path:
     name = path.name[:-len(SCENE_SUFFIX)] if path.name.endswith(SCENE_SUFFIX) else path.name
     if str(path.parent) == "." and name in scene_names():
         return shipped_scene(name)
-    raise UsageError(f"{name_or_path}: scene file not found, and no shipped scene has that name "
+    raise ConfigError(f"{name_or_path}: scene file not found, and no shipped scene has that name "
                      f"(shipped: {', '.join(scene_names())}; `palpd scenes` lists them)")
 
 

@@ -43,7 +43,8 @@ def free_loopback_ports(count: int) -> list[int]:
 
 
 class Daemon:
-    def __init__(self, tmp_path: Path, scene: str = "paper.toml", realtime: bool = False, env: dict | None = None):
+    def __init__(self, tmp_path: Path, scene: str = "paper.toml", realtime: bool = False, env: dict | None = None,
+                 args: tuple = ()):
         self.context = zmq.Context()
         events_port, commands_port, http_port = free_loopback_ports(3)
         self.events, self.commands = f"tcp://127.0.0.1:{events_port}", f"tcp://127.0.0.1:{commands_port}"
@@ -53,11 +54,12 @@ class Daemon:
                     "PALPD_DAEMON__HTTP": f"127.0.0.1:{http_port}",
                     "PALPD_DAEMON__STATE_DIR": str(self.state_dir), "PALPD_DAEMON__REALTIME": json.dumps(realtime),
                     "PALPD_DAEMON__SCENE": str(SCENES / scene), **(env or {})}
+        self.args = tuple(map(str, args))  # e.g. ("--config", FILE)
         self.process = None
         self._sockets: list[zmq.Socket] = []
 
     def start(self) -> "Daemon":
-        self.process = subprocess.Popen([sys.executable, "-m", "palpd", "serve"], env=self.env,
+        self.process = subprocess.Popen([sys.executable, "-m", "palpd", "serve", *self.args], env=self.env,
                                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         return self
 

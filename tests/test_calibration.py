@@ -10,7 +10,7 @@ from hypothesis import given, strategies as st
 import drivers
 from conftest import ROOT, assert_one_line_error
 from drivers.errors import DriverInitializationError
-from drivers.interfaces import SAMPLE_INVALID, SAMPLE_SATURATED, SAMPLE_STALE
+from drivers.interfaces import SAMPLE_INVALID, SAMPLE_REPEAT, SAMPLE_SATURATED, SAMPLE_STALE
 from drivers.nano17.calfile import load_calibration
 from drivers.nano17.calibration import tool_transform
 from drivers.nano17.daq import DaqSensor, GaugeSource
@@ -83,7 +83,7 @@ def test_daq_sensor_flags_rails_range_nan_and_stale():
 
     sensor = DaqSensor(source, cal, Clock(), stale_after_s=0.01)
     flags = [sensor.read().flags for _ in range(6)]
-    assert flags == [0, SAMPLE_SATURATED, SAMPLE_SATURATED, SAMPLE_INVALID, SAMPLE_STALE, 0]
+    assert flags == [0, SAMPLE_SATURATED, SAMPLE_SATURATED, SAMPLE_INVALID, SAMPLE_REPEAT | SAMPLE_STALE, 0]
     assert sensor.thermistor_v == 1.7
 
 

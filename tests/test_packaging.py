@@ -33,7 +33,7 @@ def test_scenes_version_and_an_unknown_scene_from_an_empty_directory(run_cli):
     assert version.returncode == 0 and version.stdout.startswith("palpd ")
     unknown = run_cli("scan", "--scene", "nosuch")
     assert_one_line_error(unknown, "nosuch", "paper", "palpd scenes")
-    assert unknown.returncode == 2
+    assert unknown.returncode == 78  # a scene, like a config file, is configuration
 
 
 def test_commands_check_arguments_and_config_before_importing_scipy_stats_sklearn_or_matplotlib(tmp_path):

@@ -2,13 +2,12 @@
 import json
 import os
 import signal
-import subprocess
-import sys
 import time
 
 import pytest
 
 from conftest import SCENES, assert_one_line_error
+from remote_bench import bench_config, serve_simulator
 
 
 @pytest.fixture(scope="module")
@@ -19,33 +18,9 @@ def simulator(tmp_path_factory):
                                "127.0.0.1:0")
 
 
-def serve_simulator(cwd, *options):
-    """Start `palpd simulate`, yield {kind: url} once it says ready, terminate it afterwards."""
-    process = subprocess.Popen(
-        [sys.executable, "-m", "palpd", "simulate", "--scene", str(SCENES / "paper.toml"), *options],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=cwd)
-    endpoints = {}
-    try:
-        for line in process.stdout:
-            if line.strip() == "ready":
-                break
-            kind, url = line.split()
-            endpoints[kind] = url
-        yield endpoints
-    finally:
-        process.terminate()
-        process.wait(5)
-
-
-def remote_settings(simulator, path):
-    """The settings a user writes for a bench: only where the bridge and the sensor are. Safety stays default."""
-    path.write_text(f'[robot]\nurl = "{simulator["bridge"]}"\n[sensor]\nbackend = "{simulator["netft"]}"\n')
-    return path
-
-
 def test_scan_runs_against_a_separately_started_simulator(simulator, tmp_path, run_cli):
     assert simulator["bridge"].startswith("socket://127.0.0.1:")
-    remote_settings(simulator, tmp_path / "remote.toml")
+    bench_config(tmp_path / "remote.toml", simulator)
     result = run_cli("scan", "--scene", SCENES / "paper.toml", "--config", "remote.toml",
                      "--max-palpations", "1", "--report", "r.json")
     assert result.returncode == 0, result.stderr
@@ -69,7 +44,7 @@ def test_a_killed_servo_process_leaves_the_arm_in_the_bridges_gravity_hold_and_t
     from palpd.control.remote import open_servo_bench
     from palpd.control.tasks import HoldAndCollect, MoveTo
 
-    settings = load_settings(remote_settings(simulator, tmp_path / "remote.toml"))
+    settings = load_settings(bench_config(tmp_path / "remote.toml", simulator))
     bench = open_servo_bench(settings, load_scene(SCENES / "paper.toml"))
     try:
         bench.servo.start()

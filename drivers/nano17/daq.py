@@ -12,7 +12,9 @@ import abc
 import math
 import time
 
-from drivers.interfaces import SAMPLE_INVALID, SAMPLE_SATURATED, SAMPLE_STALE, ForceSample, ForceSensor
+from drivers.interfaces import (
+    SAMPLE_INVALID, SAMPLE_REPEAT, SAMPLE_SATURATED, SAMPLE_STALE, ForceSample, ForceSensor,
+)
 from drivers.nano17.calibration import Calibration
 
 RAIL_FRACTION = 0.995  # a gauge this close to the DAQ's rail is clipping, whatever it reads
@@ -94,4 +96,4 @@ class DaqSensor(ForceSensor):
         if device_t != self._last_device_t:
             self._last_device_t, self._last_new_s = device_t, now
             return 0
-        return SAMPLE_STALE if now - self._last_new_s > self.stale_after_s else 0
+        return SAMPLE_REPEAT | (SAMPLE_STALE if now - self._last_new_s > self.stale_after_s else 0)

@@ -13,7 +13,7 @@ import time
 from urllib.parse import urlsplit
 
 from drivers.errors import DriverInitializationError, DriverOperationError, DriverTimeoutError
-from drivers.interfaces import SAMPLE_GAP, SAMPLE_INVALID, SAMPLE_STALE, ForceSample, ForceSensor
+from drivers.interfaces import SAMPLE_GAP, SAMPLE_INVALID, SAMPLE_REPEAT, SAMPLE_STALE, ForceSample, ForceSensor
 from drivers.nano17 import rdt
 
 
@@ -35,6 +35,7 @@ class NetFtSensor(ForceSensor):
         self._last_wall_s = 0.0
         self._name = f"netft://{host}:{port}"
         self._gap_pending = False
+        self._handed_out = False
         try:
             self._socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             self._socket.connect(self.address)
@@ -49,13 +50,15 @@ class NetFtSensor(ForceSensor):
         self._send(rdt.SET_SOFTWARE_BIAS)
 
     def read(self) -> ForceSample:
-        if not self._drain():
+        fresh = self._drain() or not self._handed_out  # a record no read has returned yet is new
+        self._handed_out = True
+        if not fresh:
             silent_s = time.monotonic() - self._last_wall_s
             if silent_s > self.timeout_s:
                 raise DriverTimeoutError(f"{self._name}: no Net F/T record for {silent_s * 1000:.0f} ms "
                                          f"(timeout {self.timeout_s * 1000:.0f} ms; unplugged or stalled?)")
         _, _, status, counts = self._last
-        flags = 0 if status == 0 else SAMPLE_INVALID
+        flags = (0 if status == 0 else SAMPLE_INVALID) | (0 if fresh else SAMPLE_REPEAT)
         if time.monotonic() - self._last_wall_s > self.stale_after_s:
             flags |= SAMPLE_STALE
         if self._gap_pending:

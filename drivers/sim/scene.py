@@ -4,7 +4,7 @@ from __future__ import annotations
 import csv
 import math
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated, Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -18,6 +18,8 @@ FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
 
 class SceneError(DriverInitializationError):
     """A scene file is missing, unreadable or invalid; the message is one line naming the file."""
+
+    exit_code = 78  # sysexits EX_CONFIG, as for a bad config file: a bad scene is bad configuration
 
 
 class _Strict(BaseModel):
@@ -50,6 +52,16 @@ class Placement(_Strict):
     rotation_deg: FiniteFloat = 0.0  # tissue turned about its normal, as the paper's test sets were
 
 
+FaultKind = Literal["sensor_frozen", "sensor_drift", "nan_samples", "encoder_jump", "amplifier_fault"]
+
+
+class FaultAt(_Strict):
+    """A fault the simulated bench develops at_s seconds after it starts (drivers.sim.faults.FAULT_KINDS)."""
+
+    at_s: NonNegativeFloat = 0.0
+    value: Optional[FiniteFloat] = None  # sensor_drift: N/s along the sensor's z; encoder_jump: counts on joint 2
+
+
 class Scene(_Strict):
     name: Annotated[str, Field(min_length=1)]
     seed: Annotated[int, Field(ge=0)] = 0
@@ -57,6 +69,7 @@ class Scene(_Strict):
     lump: list[Lump] = []
     sensor: Sensor = Sensor()
     placement: Placement = Placement()
+    faults: dict[FaultKind, FaultAt] = {}  # [faults] sensor_drift = {at_s = 5.0, value = -0.5}
 
     @model_validator(mode="after")
     def _lumps_touch_the_tissue(self):

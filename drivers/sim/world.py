@@ -48,7 +48,7 @@ class SimWorld:
         self.contact_force_robot: model.Vec3 = NO_FORCE
         self.contact_force_n = 0.0  # normal force the tissue takes now
         self.max_contact_force_n = 0.0  # its peak over every physics step (reset_peak() starts afresh)
-        self.faults = SimFaults()  # fault injection for tests; all off
+        self.faults = SimFaults(scene.faults, self.t_s)  # fault injection: the scene's [faults], and tests
         self.hand = None  # when set, a person moves the arm: hand.q_at(t_s) overrides the dynamics
         self.step_hook = None  # called after every physics step (tests and benchmarks watch the truth here)
         self.cpu_s = 0.0  # CPU time spent simulating the devices (the bridge's and the DAQ's side), for benchmarks
@@ -120,7 +120,7 @@ class SimWorld:
     def sensor_reading(self) -> tuple[float, list[float]]:
         """(time of the reading, load on the Nano17 in N and N*mm with its bias and noise), before any DAQ.
 
-        A frozen sensor keeps handing out its last reading, time and all.
+        A frozen sensor keeps handing out its last reading's values with fresh times (stuck gauges).
         """
         return self.faults.wrench(self.t_s, self.sensor.wrench(self._force_on_sensor()))
 

@@ -1,7 +1,9 @@
 """Command server: ROUTER socket, JSON requests {"id", "cmd", "args"} with replies that never block.
 
 Every way a request can be wrong becomes an error reply with a code and a
-message; nothing a client sends can raise out of here.
+message (palpd.bus.requests reads it, bounded before it is parsed); anything
+else that goes wrong while receiving one is an `internal` error reply. Nothing
+a client sends can raise out of here.
 """
 from __future__ import annotations
 
@@ -14,21 +16,17 @@ import zmq
 from pydantic import BaseModel, ValidationError
 
 from drivers.errors import describe_validation_error
-from palpd.bus.messages import COMMAND_ARGS, READ_ONLY_COMMANDS, Request
 from palpd.bus.publisher import bind_or_close
 from palpd.bus.replies import REPLY_MODELS
-from palpd.bus.security import LOCAL, OPERATOR
+from palpd.bus.requests import CommandError, check_role, parse_args, read_header
 
 log = logging.getLogger("palpd.commands")
 
-MAX_MESSAGE_BYTES = 1 << 16  # a bigger message disconnects its sender instead of eating memory
+# Frames up to MAX_FRAME_BYTES are read and, beyond requests.MAX_REQUEST_BYTES, answered with an error; a bigger
+# frame is cut by the transport (its sender is disconnected, unread) so no client can make the daemon hold more.
+MAX_FRAME_BYTES = 1 << 20
+RECEIVE_HWM = 100  # messages queued per client: a flood waits in the client's own queue, not in the daemon
 MAX_ERROR_CHARS = 300
-
-
-class CommandError(Exception):
-    def __init__(self, code: str, message: str) -> None:
-        super().__init__(message)
-        self.code, self.message = code, message
 
 
 @dataclass
@@ -45,24 +43,45 @@ class CommandServer:
         self.security = security
         self.socket = context.socket(zmq.ROUTER)
         self.socket.setsockopt(zmq.LINGER, 0)
-        self.socket.setsockopt(zmq.MAXMSGSIZE, MAX_MESSAGE_BYTES)
+        self.socket.setsockopt(zmq.MAXMSGSIZE, MAX_FRAME_BYTES)
+        self.socket.setsockopt(zmq.RCVHWM, RECEIVE_HWM)
         security.secure(self.socket)
         bind_or_close(self.socket, endpoint)
 
     def receive(self) -> Command | None:
-        """One request parsed and checked; a bad one is answered here and None returned."""
-        frames = self.socket.recv_multipart(copy=False)
-        envelope = [f.bytes for f in frames[:-1]]
-        role = self.security.role_of(_user_id(frames[-1]))
-        command = Command(envelope, None, "", None, role)
+        """One request parsed and checked; a bad one is answered here and None returned. Never raises."""
         try:
-            request = parse_request(frames[-1].bytes)
-            command.id, command.cmd = request.id, request.cmd
-            command.args = parse_args(request)
-            check_role(request.cmd, role)
+            frames = self.socket.recv_multipart(copy=False, flags=zmq.NOBLOCK)
+        except zmq.ZMQError:
+            return None  # nothing after all (or interrupted): the next poll tells
+        command = Command([frames[0].bytes], None, "", None, "")
+        try:
+            body = self._unwrap(frames, command)
+            command.role = self.security.role_of(_user_id(frames[-1]))
+            return self._parse(body, command)
         except CommandError as exc:
             self.fail(command, exc.code, exc.message)
-            return None
+        except Exception as exc:  # a bug here must cost one request, never the daemon
+            log.exception("reading a request failed")
+            self.fail(command, "internal", f"the daemon could not read this request ({type(exc).__name__})")
+        return None
+
+    @staticmethod
+    def _unwrap(frames, command: Command) -> bytes:
+        """The body; a REQ client's empty delimiter frame goes back with the reply. More frames are refused."""
+        if len(frames) == 3 and not frames[1].bytes:
+            command.envelope.append(b"")
+        elif len(frames) != 2:
+            raise CommandError("bad_request", f"a request is one frame, not {len(frames) - 1}")
+        return frames[-1].bytes
+
+    @staticmethod
+    def _parse(body: bytes, command: Command) -> Command:
+        """Bounds, JSON, header (the error reply carries the id from here on), role, then the arguments."""
+        header = read_header(body)
+        command.id, command.cmd = header.id, header.cmd
+        check_role(header.cmd, command.role)
+        command.args = parse_args(header.cmd, header.body)
         return command
 
     def reply(self, command: Command, **body: Any) -> None:
@@ -78,7 +97,7 @@ class CommandServer:
     def fail(self, command: Command, code: str, message: str) -> None:
         if len(message) > MAX_ERROR_CHARS:  # a huge bad value must not come back whole
             message = message[:MAX_ERROR_CHARS] + "..."
-        log.debug("%s refused (%s): %s", command.cmd or "request", code, message)
+        log.debug("%s refused (%s): %s", command.cmd[:40] or "request", code, message)
         body = {"id": command.id, "ok": False, "error": {"code": code, "message": message}}
         self._send(command, json.dumps(body).encode())
 
@@ -97,32 +116,3 @@ def _user_id(frame: zmq.Frame) -> str | None:
         return frame.get("User-Id")
     except zmq.ZMQError:
         return None
-
-
-def parse_request(raw: bytes) -> Request:
-    try:
-        data = json.loads(raw)
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise CommandError("bad_json", f"request is not JSON: {exc}") from None
-    if not isinstance(data, dict):
-        raise CommandError("bad_request", "request must be a JSON object {\"id\", \"cmd\", \"args\"}")
-    try:
-        return Request.model_validate(data, strict=True)
-    except ValidationError as exc:
-        raise CommandError("bad_request", describe_validation_error("request", exc)) from None
-
-
-def parse_args(request: Request) -> BaseModel:
-    model = COMMAND_ARGS.get(request.cmd)
-    if model is None:
-        raise CommandError("unknown_command", f"unknown command {request.cmd!r}; commands: {', '.join(COMMAND_ARGS)}")
-    try:
-        return model.model_validate_json(json.dumps(request.args), strict=True)
-    except ValidationError as exc:
-        raise CommandError("bad_args", describe_validation_error(f"{request.cmd} args", exc)) from None
-
-
-def check_role(cmd: str, role: str) -> None:
-    if role in (OPERATOR, LOCAL) or (role and cmd in READ_ONLY_COMMANDS):
-        return
-    raise CommandError("forbidden", f"{cmd} needs an operator key")

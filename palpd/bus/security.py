@@ -3,6 +3,9 @@
 Operators may send every command; observers may subscribe and send read-only
 commands. The ZAP handler (pyzmq's ThreadAuthenticator) refuses unknown keys
 at the handshake, so a stranger gets nothing at all, not even an error reply.
+Every process that binds a bus endpoint (the daemon, `palpd learner`) builds
+its Security here, so each refuses a non-loopback endpoint without CURVE, and
+key files anyone else could read or change (palpd.bus.keyfiles).
 """
 from __future__ import annotations
 
@@ -15,6 +18,7 @@ import zmq
 import zmq.auth
 from zmq.auth.thread import ThreadAuthenticator
 
+from palpd.bus.keyfiles import key_list_problem, secret_key_problem
 from palpd.errors import ConfigError
 
 OPERATOR, OBSERVER, LOCAL = "operator", "observer", "local"
@@ -42,10 +46,27 @@ def _public_keys(directory: str, setting: str) -> set[str]:
     path = Path(directory)
     if not path.is_dir():
         raise ConfigError(f"bus.{setting}: {directory} is not a directory of public keys")
+    problem = key_list_problem(path)
+    if problem:
+        raise ConfigError(f"bus.{setting}: {problem}")
     try:
         return {key.decode("ascii") for key in zmq.auth.load_certificates(path)}
     except (OSError, ValueError) as exc:
         raise ConfigError(f"bus.{setting}: cannot read keys in {directory}: {exc}") from None
+
+
+def load_secret_key(path: str, setting: str) -> tuple[bytes, bytes]:
+    """(public, secret) of a key pair file (NAME.key_secret), refused if it is not private to this user."""
+    problem = secret_key_problem(path)
+    if problem:
+        raise ConfigError(f"{setting}: {problem}")
+    try:
+        public, secret = zmq.auth.load_certificate(path)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{setting}: cannot read {path}: {exc}") from None
+    if secret is None:
+        raise ConfigError(f"{setting}: {path} holds no secret key (use NAME.key_secret from `palpd keygen`)")
+    return public, secret
 
 
 @dataclass
@@ -58,23 +79,22 @@ class Security:
     _auth: ThreadAuthenticator | None = None
 
     @classmethod
-    def from_settings(cls, bus) -> "Security":
-        remote = [e for e in (bus.events, bus.commands) if not is_local_endpoint(e)]
+    def from_settings(cls, bus, endpoints: tuple[str, ...] = ("events", "commands")) -> "Security":
+        """The Security of a process that binds these bus endpoints (setting names); ConfigError (one line) for a
+        non-loopback endpoint without CURVE, or key files anyone else could read or change."""
+        remote = [name for name in endpoints if not is_local_endpoint(getattr(bus, name))]
         if not bus.curve_secret_key:
             if remote:
-                raise ConfigError(f"bus: {remote[0]} is not a loopback or ipc endpoint; it needs CURVE keys "
-                                  f"(set bus.curve_secret_key and bus.operator_keys, see `palpd keygen`)")
+                raise ConfigError(f"bus.{remote[0]} {getattr(bus, remote[0])} is not a loopback or ipc endpoint; it "
+                                  f"needs CURVE keys (set bus.curve_secret_key and bus.operator_keys, see `palpd keygen`)")
             return cls()
-        try:
-            public, secret = zmq.auth.load_certificate(bus.curve_secret_key)
-        except (OSError, ValueError) as exc:
-            raise ConfigError(f"bus.curve_secret_key: cannot read {bus.curve_secret_key}: {exc}") from None
-        if secret is None:
-            raise ConfigError(f"bus.curve_secret_key: {bus.curve_secret_key} holds no secret key")
+        public, secret = load_secret_key(bus.curve_secret_key, "bus.curve_secret_key")
         roles = {key: OBSERVER for key in _public_keys(bus.observer_keys, "observer_keys")}
         roles.update({key: OPERATOR for key in _public_keys(bus.operator_keys, "operator_keys")})
         if not roles:
             raise ConfigError("bus: CURVE is on but bus.operator_keys and bus.observer_keys list no client key")
+        # Who holds the daemon's own key pair runs on its host as its user: `palpd learner` subscribes with it.
+        roles.setdefault(public.decode("ascii"), OBSERVER)
         return cls(secret, public, roles)
 
     def start(self, context: zmq.Context) -> None:
@@ -94,6 +114,13 @@ class Security:
             socket.curve_secretkey = self.secret_key
             socket.curve_publickey = self.public_key
             socket.curve_server = True
+
+    def secure_client(self, socket: zmq.Socket) -> None:
+        """Make a socket a CURVE client of the daemon with its own key pair (before connect): `palpd learner`."""
+        if self.secret_key is not None:
+            socket.curve_serverkey = self.public_key
+            socket.curve_publickey = self.public_key
+            socket.curve_secretkey = self.secret_key
 
     def role_of(self, user_id: str | None) -> str:
         if self.secret_key is None:

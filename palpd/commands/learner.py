@@ -11,13 +11,18 @@ def add_parser(subparsers):
 def run(args) -> int:
     import zmq
 
+    from palpd.bus.security import Security
     from palpd.config import load_settings
     from palpd.errors import ConfigError
 
     settings = load_settings(args.config)  # checked before the learner's numerics are imported
+    security = Security.from_settings(settings.bus, ("learner_events",))  # non-loopback needs CURVE
     from palpd.learner.service import run_service
 
+    security.start(zmq.Context.instance())
     try:
-        return run_service(settings)
+        return run_service(settings, security)
     except zmq.ZMQError as exc:
         raise ConfigError(f"bus: cannot use {settings.bus.events} / {settings.bus.learner_events}: {exc}") from None
+    finally:
+        security.stop()

@@ -15,6 +15,10 @@ def add_parser(subparsers):
                           help="where the Phantom bridge listens (port 0: any free port; default tcp://127.0.0.1:0)")
     simulate.add_argument("--netft", metavar="HOST:PORT", help="also serve a Net F/T RDT endpoint here")
     simulate.add_argument("--seed", type=int, default=0)
+    simulate.add_argument("--fault", action="append", default=[], metavar="KIND@T[=VALUE]",
+                          help="develop a fault T seconds after start (as a scene's [faults] table): sensor_frozen, "
+                               "sensor_drift (VALUE N/s on the sensor's z, default -0.5), nan_samples, encoder_jump "
+                               "(VALUE counts, default 400), amplifier_fault; repeatable")
     return simulate
 
 
@@ -24,7 +28,7 @@ def run(args) -> int:
 
     from palpd.shipped import load_scene_named
 
-    scene = load_scene_named(args.scene)
+    scene = with_faults(load_scene_named(args.scene), args.fault)
     from drivers.clock import RealClock
     from drivers.sim.servers import SimulatorHost
     from drivers.sim.world import SimWorld
@@ -44,6 +48,29 @@ def run(args) -> int:
     finally:
         host.close()
     return 0
+
+
+def with_faults(scene, specs: list[str]):
+    """The scene with `--fault KIND@T[=VALUE]` added to its [faults] table (a later one of a kind wins)."""
+    import sys
+
+    from drivers.sim.faults import FAULT_KINDS
+    from drivers.sim.scene import FaultAt
+
+    faults = dict(scene.faults)
+    for spec in specs:
+        kind, _, rest = spec.partition("@")
+        at, _, value = rest.partition("=")
+        if kind not in FAULT_KINDS:
+            raise UsageError(f"--fault {spec!r}: unknown kind {kind!r}; kinds: {', '.join(FAULT_KINDS)}")
+        try:
+            faults[kind] = FaultAt(at_s=float(at), value=float(value) if value else None)
+        except ValueError:
+            raise UsageError(f"--fault {spec!r}: expected KIND@SECONDS[=VALUE], e.g. sensor_drift@5=-0.5") from None
+    for kind, fault in sorted(faults.items(), key=lambda item: item[1].at_s):
+        value = "" if fault.value is None else f" (value {fault.value:g})"
+        print(f"palpd simulate: {kind} at {fault.at_s:g} s{value}", file=sys.stderr, flush=True)
+    return scene.model_copy(update={"faults": faults})
 
 
 def _add_endpoints(host, args) -> None:

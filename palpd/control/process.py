@@ -52,6 +52,9 @@ def _open(conn, ring: SampleRing, settings, scene, seed, realtime):
     except (PalpdError, DriverError) as exc:
         conn.send(("error", exc, None))
         return None
+    except Exception as exc:  # anything else would only show as "servo process exited": say what it was
+        conn.send(("error", PalpdError(f"cannot open the bench: {type(exc).__name__}: {exc}"), None))
+        return None
     notes = []
     if realtime:  # a virtual-time loop runs flat out: it must not do so at real-time priority
         from palpd.control.realtime import prepare_realtime
@@ -154,7 +157,7 @@ class ServoProcess:
     def _state(self) -> dict:
         servo, world = self.servo, self.bench.world
         return {"fault": servo.fault, "last_tick": servo.last_tick, "max_contact_force_n": servo.max_contact_force_n,
-                "motors_on": servo.motors_on, "bias_n": servo.forces.bias_n,
+                "motors_on": servo.motors_on, "bias_n": servo.forces.bias_n, "sensor": servo.health.summary(),
                 "amplifiers_on": world.amplifiers_on if world is not None else None,
                 "true_max_contact_force_n": servo.true_max_contact_force_n}
 

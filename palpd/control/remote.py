@@ -12,7 +12,7 @@ import multiprocessing
 import threading
 import time
 
-from palpd.bench import Bench
+from palpd.bench import Bench, check_reach
 from palpd.control.process import servo_main
 from palpd.control.contact import measure_noise
 from palpd.control.ring import FLAG_FAULT, SampleRing
@@ -32,6 +32,7 @@ class ServoProcessError(PalpdError):
 def open_servo_bench(settings, scene, seed: int = 0, realtime: bool = False) -> Bench:
     """Start the servo process on the bench open_bench would open here; returns the parent's view of it."""
     realtime = realtime or not settings.robot.url.startswith("sim")  # hardware runs on the wall clock, always
+    check_reach(settings, scene)  # here, in one line: a child that cannot place the tissue could only die
     context = multiprocessing.get_context("spawn")  # never fork a process that holds ZeroMQ threads
     ring = SampleRing.create()
     ours, theirs = context.Pipe()
@@ -95,10 +96,20 @@ class RemoteTiming:
         return self.servo.call("timing")
 
 
+class RemoteHealth:
+    """The servo process's sensor health (palpd.control.health), as its last reply said."""
+
+    def __init__(self) -> None:
+        self.last = {"retares": 0, "max_drift_n": 0.0}
+
+    def summary(self) -> dict:
+        return dict(self.last)
+
+
 class RemoteServo:
     def __init__(self, process, conn, ring: SampleRing) -> None:
         self.process, self.conn, self.ring = process, conn, ring
-        self.forces, self.timing = RemoteForces(self), RemoteTiming(self)
+        self.forces, self.timing, self.health = RemoteForces(self), RemoteTiming(self), RemoteHealth()
         self.fault: Fault | None = None
         self.last_tick = None
         self.max_contact_force_n = 0.0
@@ -225,6 +236,7 @@ class RemoteServo:
         self.fault, self.last_tick = state["fault"], state["last_tick"]
         self.max_contact_force_n, self.motors_on = state["max_contact_force_n"], state["motors_on"]
         self.forces.bias_n, self.amplifiers_on = state["bias_n"], state["amplifiers_on"]
+        self.health.last = state["sensor"]
         self.true_max_contact_force_n = state["true_max_contact_force_n"]
 
     def _lost(self, why: str):

@@ -77,6 +77,7 @@ class SafetySupervisor:
                        self._limits, self._speed, self._tracking]
         self.category_0_checks = [self._device, self._encoders]
         self._limits_now = (self.joint_ranges, self.box_mm)
+        self.monitors: list = []  # more checks with check(tick) and reset() (palpd.control.health.SensorHealth)
         self.reset()
 
     def reset(self) -> None:
@@ -87,6 +88,14 @@ class SafetySupervisor:
         self._rigid_at = (0.0, 0.0, 0.0)
         self._astray_since: float | None = None
         self._limits_now = (self.joint_ranges, self.box_mm)
+        for monitor in self.monitors:
+            monitor.reset()
+
+    def add_monitor(self, monitor) -> None:
+        """One more category-1 check, after the sample checks (a monitor judges readings already found sound)."""
+        self.monitors.append(monitor)
+        self.checks.insert(self.checks.index(self._sample) + 1, monitor.check)
+        monitor.reset()
 
     def check(self, tick) -> Fault | None:
         """The first reason to stop at this tick, or None."""

@@ -34,10 +34,10 @@ log = logging.getLogger("palpd.daemon")
 
 
 class Supervisor:
-    def __init__(self, settings, bench, reopen_bench=None) -> None:
+    def __init__(self, settings, bench, reopen_bench=None, security: Security | None = None) -> None:
         self.settings, self.bench = settings, bench
         self.reopen_bench = reopen_bench  # a new servo process after servo_lost (reset)
-        self.security = Security.from_settings(settings.bus)
+        self.security = security or Security.from_settings(settings.bus)
         self.sessions_dir = ensure_writable(state_directory(settings.daemon.state_dir))
         self.notifier = Notifier()
         self.context = zmq.Context()

@@ -10,6 +10,7 @@ from palpd.bus.security import is_local_endpoint
 from palpd.errors import ConfigError, PalpdError
 
 MAX_FAULTS_SHOWN = 20
+MIN_TOKEN_CHARS = 16  # a shorter token could be guessed
 
 
 def open_viewers(daemon_settings, tissue_size_mm) -> list:
@@ -33,16 +34,27 @@ def parse_address(text: str, setting: str) -> tuple[str, int]:
     return host.strip("[]"), int(port)
 
 
+def check_live_view(address: str, token: str) -> tuple[str, int]:
+    """(host, port) of daemon.http; ConfigError unless it is loopback or protected by a token hard to guess."""
+    host, port = parse_address(address, "daemon.http")
+    if is_local_endpoint(f"tcp://{host}:{port}"):
+        return host, port
+    if not token:
+        raise ConfigError(f"daemon.http {address!r} is not a loopback address; the live view there needs "
+                          f"daemon.http_token (or bind it to 127.0.0.1)")
+    if len(token) < MIN_TOKEN_CHARS:
+        raise ConfigError(f"daemon.http_token has {len(token)} characters; a token on the network needs at least "
+                          f"{MIN_TOKEN_CHARS} (e.g. python3 -c 'import secrets; print(secrets.token_urlsafe())')")
+    return host, port
+
+
 class LiveView:
     """Feeds the web page's state (palpd.web.server) from the daemon's events."""
 
     def __init__(self, address: str, token: str, tissue_size_mm) -> None:
         from palpd.web.server import LiveServer, LiveState
 
-        host, port = parse_address(address, "daemon.http")
-        if not is_local_endpoint(f"tcp://{host}:{port}") and not token:
-            raise ConfigError(f"daemon.http {address!r} is not a loopback address; the live view there needs "
-                              f"daemon.http_token (or bind it to 127.0.0.1)")
+        host, port = check_live_view(address, token)
         self.state = LiveState(tissue_size_mm)
         try:
             self.server = LiveServer(host, port, self.state, token)

@@ -19,16 +19,20 @@ POLL_MS = 200
 
 
 class LearnerService:
-    def __init__(self, settings, context: zmq.Context | None = None) -> None:
+    def __init__(self, settings, context: zmq.Context | None = None, security=None) -> None:
+        """security (palpd.bus.security.Security): CURVE for both sockets, as the daemon's bus has it."""
         self.settings = settings
         self.learner = make_learner(settings, settings.tissue.size_mm, settings.scan.seed)
         self.context = context or zmq.Context.instance()
         self.sub = self.context.socket(zmq.SUB)
         self.sub.setsockopt(zmq.LINGER, 0)
         self.sub.setsockopt(zmq.SUBSCRIBE, b"stiffness")
-        self.sub.connect(settings.bus.events)
         self.pub = self.context.socket(zmq.XPUB)
         self.pub.setsockopt(zmq.LINGER, 0)
+        if security is not None:
+            security.secure_client(self.sub)
+            security.secure(self.pub)
+        self.sub.connect(settings.bus.events)
         self.pub.bind(settings.bus.learner_events)
         self.seq = 0
         self.latest = self._estimate()
@@ -75,8 +79,8 @@ class LearnerService:
         self.pub.send_multipart([b"estimate", estimate.model_dump_json().encode()])
 
 
-def run_service(settings) -> int:
-    service = LearnerService(settings)
+def run_service(settings, security=None) -> int:
+    service = LearnerService(settings, security=security)
 
     def stop(*_):
         service.running = False
