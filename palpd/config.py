@@ -86,8 +86,8 @@ class PalpationSettings(_Section):
     hold_s: NonNegative = 0.0
     # Contact: the low-passed force (time constant contact_filter_s) rises contact_on_sd noise sds above the
     # zero, and ends below contact_off_sd, the noise measured at the tare; never below these floors in N.
-    contact_on_n: Positive = 0.02
-    contact_off_n: Positive = 0.01
+    contact_on_n: Positive = 0.03  # above safety.drift_retare_n: a drift left uncorrected never reads as contact
+    contact_off_n: Positive = 0.015
     contact_on_sd: Annotated[float, Field(ge=2, le=50)] = 5.0
     contact_off_sd: Annotated[float, Field(ge=1, le=50)] = 2.5
     contact_filter_s: Annotated[float, Field(ge=0, le=0.1)] = 0.01

@@ -49,6 +49,8 @@ BOUNDS: dict[str, Bound] = {
     "palpation.approach_speed_mm_s": Bound(100.0, "mm/s", "the probe must be able to stop at first contact"),
     "palpation.travel_speed_mm_s": Bound(300.0, "mm/s", "travel stays well below safety.max_tip_speed_mm_s's bound"),
     "palpation.hold_s": Bound(60.0, "s", "a longer hold is a creep test, not a palpation", low_inclusive=True),
+    "palpation.contact_filter_s": Bound(0.1, "s", "a slower filter finds contact millimetres late at the approach speed",
+                                        low_inclusive=True),
     "safety.force_cap_n": Bound(8.5, "N", "the Phantom Premium 1.5A's peak tip force: a higher cap never trips"),
     "safety.workspace_margin_mm": Bound(50.0, "mm", "the box guards the tissue, not the whole reach of the arm",
                                         low_inclusive=True),

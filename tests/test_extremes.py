@@ -107,7 +107,7 @@ def test_contact_thresholds_rise_with_the_measured_noise_and_the_contact_point_i
     bench, probes = noisy_sensor
     noise = bench.servo.forces.noise
     assert noise.sd_n == pytest.approx(0.3, rel=0.15)
-    assert probes[0].record.contact_on_n > 0.2  # far above the 0.02 N floor: the noise cannot reach it
+    assert probes[0].record.contact_on_n > 0.2  # far above the 0.03 N floor: the noise cannot reach it
     for probe in probes:
         assert probe.outcome == "fit" and abs(probe.record.contact_z_mm) < 1.0  # the surface is at z = 0
         assert probe.stiffness_n_per_mm == pytest.approx(0.12, abs=3.0 * probe.fit.stiffness_se_n_per_mm + 0.006)

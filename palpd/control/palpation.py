@@ -21,7 +21,8 @@ from palpd.control.tasks import MoveTo
 
 Vec3 = tuple[float, float, float]
 NO_CONTACT_MARGIN_MM = 10.0  # how far below the nominal surface to look before giving up
-SLOW_ZONE_MM = 2.0  # above the nominal surface, the approach slows to the indentation speed
+SLOW_ZONE_MM = 2.5  # from this high above the nominal surface down, the approach goes at the indentation speed
+ARM_MM = 1.5  # contact is looked for from here down: below the drift check (and re-tare) and the slowdown
 LOOKBACK_S = 2.5  # the approach kept for finding the contact point again: from the slow zone to the margin
 # speed_profile = "varying": the indentation speed swings between (1 - SWING) and (1 + SWING) times
 # speed_mm_s, SPEED_CYCLES times over the depth, so the same depths are pressed slowly and quickly.
@@ -46,6 +47,7 @@ class PalpationRecord:
     t_start_s: float = 0.0
     t_end_s: float = 0.0
     t_first_tick_s: float | None = None  # the task's first tick: where its segmenter began (replay starts there)
+    t_armed_s: float | None = None  # when contact began to be looked for (replay arms its segmenter after it)
     dropped_samples: int = 0  # samples whose force was NaN or infinite, left out
     contact_on_n: float = 0.0  # the thresholds contact was judged by (scaled to the measured noise)
     contact_off_n: float = 0.0
@@ -60,11 +62,12 @@ class PalpationRecord:
 
 
 def palpation_segmenter(on_n: float, off_n: float, filter_s: float) -> Segmenter:
-    """The segmenter of one autonomous palpation. The sensor is tared (its zero starts at 0 N); contact is
-    looked for from the approach on (arm it then), not while travelling; no least press or depth: a
+    """The segmenter of one autonomous palpation. Its zero is followed from the first sample (the sensor
+    may have drifted since the tare); contact is looked for from the approach on (arm it then), not while
+    travelling; no least press or depth: a
     palpation that hits the force limit early is the stiffest evidence there is."""
     segmenter = Segmenter(on_n, off_n, min_peak_n=0.0, min_depth_mm=0.0, filter_s=filter_s, lookback_s=LOOKBACK_S,
-                          baseline_n=0.0)
+                          baseline_n=None)
     segmenter.armed = False
     return segmenter
 
@@ -103,7 +106,7 @@ class Palpation:
         target = self._task.step(tick)
         if self._task.done:
             self._phase, self.record.t_start_s = "approach", tick.t_s
-            self.segmenter.armed = True
+            self.segmenter.forget()
         return target
 
     def _approach(self, tick, dt) -> Vec3:
@@ -114,6 +117,12 @@ class Palpation:
         # Within SLOW_ZONE_MM of the surface the approach already moves at the indentation speed, so contact
         # begins at the speed the press goes on at: no start-up transient when the threshold fires.
         near = self._target_z <= SLOW_ZONE_MM
+        if self._target_z <= ARM_MM and not self.segmenter.armed:
+            # Armed here, below where the sensor's zero is checked (and re-tared) at each approach
+            # (palpd.control.health), from a zero read just before: a re-tare is not a contact.
+            self.segmenter.armed = True
+            self.segmenter.forget()
+            self.record.t_armed_s = tick.t_s
         self._target_z -= (min(self.s.speed_mm_s, self.s.approach_speed_mm_s) if near else self.s.approach_speed_mm_s) * dt
         if self._target_z < -(self.s.depth_mm + NO_CONTACT_MARGIN_MM):
             self._start_retract(tick, "no_contact")

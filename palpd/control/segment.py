@@ -23,6 +23,8 @@ from collections import deque
 from dataclasses import dataclass, field
 
 Vec3 = tuple[float, float, float]
+SETTLE_TIME_S = 0.05  # how fast the zero follows the force while the segmenter is disarmed
+ZERO_SAMPLES = 50  # on arming, the zero is the mean of this many of the latest samples
 
 
 @dataclass
@@ -73,8 +75,14 @@ class Segmenter:
     @armed.setter
     def armed(self, value: bool) -> None:
         if value and not self._armed:
-            self._before.clear()  # the approach starts here: travel (and its inertial forces) is not kept
+            recent = [f for *_, f in list(self._before)[-ZERO_SAMPLES:]]
+            if recent:  # the zero as the force read just now, not as it was followed through travel and re-tares
+                self.baseline_n = sum(recent) / len(recent)
         self._armed = value
+
+    def forget(self) -> None:
+        """Drop the samples kept so far (a palpation's travel, and its inertial forces, before the approach)."""
+        self._before.clear()
 
     @property
     def filtered_n(self) -> float | None:
@@ -132,7 +140,10 @@ class Segmenter:
         if self.baseline_n is None or not math.isfinite(self.baseline_n):
             self.baseline_n = force_n
             return
-        self.baseline_n += (force_n - self.baseline_n) * (1.0 - math.exp(-dt / self.baseline_time_s))
+        # Disarmed (travelling to the point), the zero follows faster: it starts from one noisy sample and
+        # may be drifting; armed, it follows slowly, so a slow press is not taken for drift.
+        time_s = self.baseline_time_s if self._armed else min(self.baseline_time_s, SETTLE_TIME_S)
+        self.baseline_n += (force_n - self.baseline_n) * (1.0 - math.exp(-dt / time_s))
 
     def _begin(self, t_s: float, tip_mm: Vec3) -> None:
         self.current = Segment(t_s, tip_mm[2], self.baseline_n)

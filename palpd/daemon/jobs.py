@@ -47,7 +47,7 @@ def journal_entry(index: int, probe, t_s: float) -> dict:
         # the way out too: a damped model's fit uses it, and replay refits exactly what the scan fitted
         "unload_depth_mm": record.unload_depth_mm, "unload_force_n": record.unload_force_n,
         "t_first_tick_s": record.t_first_tick_s, "t_end_s": record.t_end_s,  # its raw samples, for replay
-        "t_start_s": record.t_start_s, "outcome": probe.outcome, "stop_reason_detail": probe.rejected,
+        "t_start_s": record.t_start_s, "t_armed_s": record.t_armed_s, "outcome": probe.outcome, "stop_reason_detail": probe.rejected,
         # how contact was judged (scaled to the measured noise) and aligned: replay cuts it again the same way
         "contact_on_n": record.contact_on_n, "contact_off_n": record.contact_off_n,
         "contact_filter_s": record.contact_filter_s, "force_lead_s": record.force_lead_s,

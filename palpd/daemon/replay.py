@@ -65,10 +65,15 @@ def resegmented(trace: dict, samples: list, settings) -> dict:
     p = settings.palpation
     segmenter = palpation_segmenter(trace.get("contact_on_n", p.contact_on_n), trace.get("contact_off_n", p.contact_off_n),
                                     trace.get("contact_filter_s", 0.0))
-    t_armed = trace.get("t_start_s", t0)
-    best = None
+    t_approach, t_armed = trace.get("t_start_s") or t0, trace.get("t_armed_s") or t0
+    best, forgotten = None, False
     for t, tip, force in samples[start:stop]:
-        segmenter.armed = t > t_armed  # live, the task arms it after its segmenter has taken that tick
+        if t > t_approach and not forgotten:  # live, the task acts after its segmenter has taken that tick
+            segmenter.forget()
+            forgotten = True
+        if t > t_armed and not segmenter.armed:
+            segmenter.armed = True
+            segmenter.forget()
         segment = segmenter.push(t, tip, force)
         if segment is not None and (best is None or segment.peak_force_n > best.peak_force_n):
             best = segment
