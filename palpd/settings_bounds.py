@@ -51,6 +51,8 @@ BOUNDS: dict[str, Bound] = {
     "palpation.hold_s": Bound(60.0, "s", "a longer hold is a creep test, not a palpation", low_inclusive=True),
     "palpation.sliding_speed_mm_s": Bound(50.0, "mm/s", "a faster slide drags and shears the tissue"),
     "palpation.modulation_hz": Bound(20.0, "Hz", "the servo must trace each cycle with enough samples to fit it"),
+    "palpation.contact_filter_s": Bound(0.1, "s", "a slower filter finds contact millimetres late at the approach speed",
+                                        low_inclusive=True),
     "safety.force_cap_n": Bound(8.5, "N", "the Phantom Premium 1.5A's peak tip force: a higher cap never trips"),
     "safety.max_lateral_force_n": Bound(8.5, "N", "the Phantom Premium 1.5A's peak tip force: a higher limit "
                                                   "never trips"),

@@ -64,6 +64,9 @@ def run(args) -> int:
         fault = report["faults"][0]
         print(f"palpd: scan stopped by a safety fault ({fault['code']}): {fault['message']}", file=sys.stderr)
         return EXIT_FAILURE
+    if report.get("undetermined_reason"):
+        print(f"palpd: undetermined: {report['undetermined_reason']}", file=sys.stderr)
+        return EXIT_UNDETERMINED
     if report["verdict"] == "undetermined":
         print(f"palpd: undetermined: {report['palpations']} palpations did not decide whether and which lumps "
               f"there are (raise --max-palpations or lower --confidence)", file=sys.stderr)
@@ -74,7 +77,9 @@ def run(args) -> int:
 def _progress_printer(args):
     def show(done: int, total: int, probe) -> None:
         x, y = probe.record.xy_mm
-        k = "no fit: " + probe.rejected if probe.fit is None else f"k = {probe.stiffness_n_per_mm:.3f} N/mm"
+        k = f"{probe.outcome}: {probe.rejected}" if probe.fit is None else f"k = {probe.stiffness_n_per_mm:.3f} N/mm"
+        if probe.stiffness_bound_n_per_mm is not None:
+            k += f" (k {'≥' if probe.outcome == 'too_stiff' else '≤'} {probe.stiffness_bound_n_per_mm:.3g} N/mm)"
         _say(args, f"[{done:3d}/{total}] ({x:6.1f}, {y:6.1f}) mm  {k}")
 
     return show
