@@ -84,16 +84,36 @@ class PalpationSettings(_Section):
     clearance_mm: Annotated[float, Field(gt=0, le=50)] = 4.0
     max_force_n: Positive = 4.0
     hold_s: NonNegative = 0.0
-    contact_on_n: Positive = 0.06
-    contact_off_n: Positive = 0.03
+    # Contact: the low-passed force (time constant contact_filter_s) rises contact_on_sd noise sds above the
+    # zero, and ends below contact_off_sd, the noise measured at the tare; never below these floors in N.
+    contact_on_n: Positive = 0.03  # above safety.drift_retare_n: a drift left uncorrected never reads as contact
+    contact_off_n: Positive = 0.015
+    contact_on_sd: Annotated[float, Field(ge=2, le=50)] = 5.0
+    contact_off_sd: Annotated[float, Field(ge=1, le=50)] = 2.5
+    contact_filter_s: Annotated[float, Field(ge=0, le=0.1)] = 0.01
     force_axes: Literal["tissue", "sensor_z"] = "tissue"
     tare_samples: Annotated[int, Field(ge=1, le=10000)] = 200
+    # "sliding": stay in contact at sliding_depth_mm and move along a path, the indentation modulated by
+    # ± modulation_mm at modulation_hz; each cycle's force against depth gives one stiffness point.
+    mode: Literal["discrete", "sliding"] = "discrete"
+    sliding_depth_mm: Annotated[float, Field(gt=0, le=30)] = 2.5
+    sliding_speed_mm_s: Annotated[float, Field(gt=0, le=50)] = 30.0
+    sliding_length_mm: Annotated[float, Field(gt=0, le=500)] = 30.0  # one path of the active planner
+    modulation_mm: Annotated[float, Field(gt=0, le=10)] = 1.0
+    modulation_hz: Annotated[float, Field(gt=0, le=20)] = 10.0
 
     @model_validator(mode="after")
     def _hysteresis(self):
         if self.contact_off_n >= self.contact_on_n:
             raise ValueError("contact_off_n must be below contact_on_n (hysteresis)")
+        if self.modulation_mm >= self.sliding_depth_mm:
+            raise ValueError("modulation_mm must be below sliding_depth_mm (the probe keeps contact)")
+        if self.contact_off_sd >= self.contact_on_sd:
+            raise ValueError("contact_off_sd must be below contact_on_sd (hysteresis)")
         return self
+
+
+RATE_MODELS = ("kelvin-voigt", "hunt-crossley")  # damping terms: identifiable only when the speed varies
 
 
 class StiffnessSettings(_Section):
@@ -105,6 +125,7 @@ class StiffnessSettings(_Section):
 
 class SafetySettings(_Section):
     force_cap_n: Positive = 6.0
+    max_lateral_force_n: Positive = 2.0  # drag or shear along the surface (sliding palpation): above it, a stop
     workspace_margin_mm: NonNegative = 15.0
     max_tip_speed_mm_s: Positive = 400.0
     workspace_z_mm: tuple[Finite, Finite] = (-20.0, 80.0)  # tip height range above the tissue surface
@@ -203,6 +224,16 @@ class Settings(_Section):
             raise ValueError(
                 f"palpation.max_force_n ({self.palpation.max_force_n} N) must be below "
                 f"safety.force_cap_n ({self.safety.force_cap_n} N)"
+            )
+        return self
+
+    @model_validator(mode="after")
+    def _identifiable_model(self):
+        if self.stiffness.model in RATE_MODELS and self.palpation.speed_profile == "constant":
+            raise ValueError(
+                f"stiffness.model = {self.stiffness.model!r} is not identifiable at one constant indentation speed "
+                "(k and the damping b rise alike): set palpation.speed_profile = \"varying\", or a model without "
+                "damping (\"select\", \"power\", \"linear\")"
             )
         return self
 

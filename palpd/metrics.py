@@ -100,12 +100,36 @@ def iou(boundary_mm: list[list[float]], true: dict) -> float:
     extent = other if other is not None else np.array([centre - radius, centre + radius])
     low = np.minimum(polygon.min(axis=0), extent.min(axis=0)) - 1.0
     high = np.maximum(polygon.max(axis=0), extent.max(axis=0)) + 1.0
+    points = _grid(low, high)
+    return _ratio(PolygonPath(polygon).contains_points(points), _inside_true(points, true))
+
+
+def region_iou(truth: list[dict], lumps: list[dict], size_mm) -> float:
+    """IoU of all reported lump areas against all true ones over the palpable rectangle: a missed lump and a
+    false one both cost area; no lump reported where there is none scores 1."""
+    half = np.asarray(size_mm, dtype=float) / 2
+    points = _grid(-half, half + IOU_GRID_MM)
+    reported = np.zeros(len(points), dtype=bool)
+    for lump in lumps:
+        reported |= PolygonPath(np.asarray(lump["boundary_mm"], dtype=float)).contains_points(points)
+    true = np.zeros(len(points), dtype=bool)
+    for lump in truth:
+        true |= _inside_true(points, lump)
+    return _ratio(reported, true) if (reported | true).any() else 1.0
+
+
+def _grid(low, high) -> np.ndarray:
     gx, gy = np.meshgrid(np.arange(low[0], high[0], IOU_GRID_MM), np.arange(low[1], high[1], IOU_GRID_MM))
-    points = np.column_stack([gx.ravel(), gy.ravel()])
-    in_polygon = PolygonPath(polygon).contains_points(points)
-    if other is not None:
-        in_truth = PolygonPath(other).contains_points(points)
-    else:
-        in_truth = np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1]) <= radius
-    union = np.count_nonzero(in_polygon | in_truth)
-    return float(np.count_nonzero(in_polygon & in_truth) / union) if union else 0.0
+    return np.column_stack([gx.ravel(), gy.ravel()])
+
+
+def _inside_true(points: np.ndarray, true: dict) -> np.ndarray:
+    if true.get("boundary_mm"):
+        return PolygonPath(np.asarray(true["boundary_mm"], dtype=float)).contains_points(points)
+    centre = np.asarray(true["center_mm"], dtype=float)
+    return np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1]) <= float(true["radius_mm"])
+
+
+def _ratio(a: np.ndarray, b: np.ndarray) -> float:
+    union = np.count_nonzero(a | b)
+    return float(np.count_nonzero(a & b) / union) if union else 0.0

@@ -2,50 +2,20 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from collections import Counter
 from typing import Callable
 
 from palpd import strategies
 from palpd.bench import Bench
+from palpd.config import RATE_MODELS
+from palpd.control.contact import contact_thresholds
 from palpd.control.palpation import Palpation, PalpationRecord
+from palpd.probe import Probe, judge
 from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.errors import ScanFault, UsageError
 from palpd.estimate import estimate_lumps
-from palpd.stiffness import FitRejected, StiffnessResult
-from palpd.stiffness.palpation import fit_palpation
 
 PARK_HEIGHT_MM = 20.0  # a single probe (probe.at) backs out this high before the servo parks the arm
-
-
-@dataclass
-class Probe:
-    record: PalpationRecord
-    fit: StiffnessResult | None
-    rejected: str | None = None
-
-    @property
-    def stiffness_n_per_mm(self) -> float | None:
-        return self.fit.stiffness_n_per_mm if self.fit else None
-
-    @property
-    def outcome(self) -> str:
-        if self.fit is not None:
-            return "fit"
-        return "no_contact" if self.record.stop_reason == "no_contact" else "rejected"
-
-    def as_dict(self) -> dict:
-        # A failed palpation has no contact point: it is reported where it was aimed.
-        xy = self.record.xy_mm if self.fit is not None else self.record.target_xy_mm
-        out = {"target_xy_mm": [round(v, 3) for v in self.record.target_xy_mm], "xy_mm": [round(v, 3) for v in xy],
-               "outcome": self.outcome,
-               "stiffness_n_per_mm": None if self.fit is None else round(self.fit.stiffness_n_per_mm, 5)}
-        if self.fit is not None:
-            out["stiffness_se_n_per_mm"] = round(self.fit.stiffness_se_n_per_mm, 6)
-            out["stiffness_model"] = self.fit.model
-            out["max_force_n"] = round(self.record.max_force_n, 4)
-        else:
-            out["rejected"] = self.rejected
-        return out
 
 
 class FixedPlan:
@@ -71,7 +41,10 @@ class FixedPlan:
 
 
 def plan(strategy: str, size_mm, max_palpations: int, seed: int, settings=None):
-    """The planner for a strategy; `active` is the online learner (settings: palpd.config.Settings)."""
+    """The planner for a strategy; `active` is the online learner (settings: palpd.config.Settings).
+    With palpation.mode = "sliding" the plan is of paths (palpd.slide)."""
+    if settings is not None and settings.palpation.mode == "sliding":
+        return _sliding_plan(strategy, size_mm, max_palpations, seed, settings)
     if strategy == "raster":
         return FixedPlan(strategies.raster_points(size_mm, max_palpations))
     if strategy == "random":
@@ -84,16 +57,33 @@ def plan(strategy: str, size_mm, max_palpations: int, seed: int, settings=None):
     raise UsageError(f"unknown strategy {strategy!r}; choose from {', '.join(strategies.STRATEGIES)}")
 
 
+def _sliding_plan(strategy: str, size_mm, max_palpations: int, seed: int, settings):
+    from palpd import slide
+
+    if strategy == "raster":
+        return FixedPlan(slide.raster_paths(size_mm, max_palpations))
+    if strategy == "active":
+        return slide.SlidingPlanner(size_mm, settings, max_palpations, seed)
+    raise UsageError(f"strategy {strategy!r} has no sliding plan; slide with raster or active")
+
+
+def palpations(bench: Bench, settings, planned) -> list[Probe]:
+    """What one planned palpation reads: a point pressed once, or a path slid along (a reading per cycle)."""
+    if settings.palpation.mode == "sliding":
+        from palpd.slide import slide
+
+        return slide(bench, settings, planned)
+    return [palpate(bench, settings, planned)]
+
+
 def palpate(bench: Bench, settings, xy_mm) -> Probe:
-    """One palpation through the servo loop, then its stiffness fit."""
-    palpation = Palpation(xy_mm, settings.palpation)
+    """One palpation through the servo loop (contact thresholds scaled to the noise the last tare measured),
+    then its contact point found from the whole trace and its stiffness fit, or a named outcome."""
+    thresholds = contact_thresholds(settings.palpation, getattr(bench.servo.forces, "noise", None),
+                                    settings.servo.rate_hz)
+    palpation = Palpation(xy_mm, settings.palpation, thresholds)
     bench.servo.run(palpation)
-    record = palpation.record
-    try:
-        return Probe(record, fit_palpation(record, settings.stiffness, settings.servo.rate_hz))
-    except FitRejected as exc:
-        reason = "no contact found" if record.stop_reason == "no_contact" else str(exc)
-        return Probe(record, None, reason)
+    return judge(palpation.finish(refit_onset=settings.stiffness.model not in RATE_MODELS), settings)
 
 
 def _estimate(planner, probes: list[Probe], settings) -> tuple[list, str, dict | None]:
@@ -105,6 +95,24 @@ def _estimate(planner, probes: list[Probe], settings) -> tuple[list, str, dict |
     lumps = estimate_lumps([pr.record.xy_mm for pr in good], [pr.stiffness_n_per_mm for pr in good],
                            settings.scan.min_contrast) if good else []
     return lumps, ("lumps" if lumps else "none") if good else "undetermined", None
+
+
+HINTS = {"no_contact": "check the tissue placement (tissue.origin_mm) and the force sensor",
+         "rejected": "check the sensor noise and the palpation depth and speed",
+         "too_soft": "press deeper (palpation.depth_mm) or check the force sensor",
+         "too_stiff": "lower the indentation speed or raise palpation.max_force_n"}
+WHAT = {"no_contact": "found no contact", "rejected": "gave no usable fit", "too_soft": "felt no force above the noise",
+        "too_stiff": "hit the force limit at once"}
+
+
+def failure_reason(probes: list) -> str | None:
+    """A sentence when fewer than half the palpations gave a stiffness or a bound, naming the commonest failure."""
+    informative = sum(pr.fit is not None or pr.stiffness_bound_n_per_mm is not None for pr in probes)
+    if not probes or informative * 2 >= len(probes):
+        return None
+    failed = Counter(pr.outcome for pr in probes if pr.fit is None)
+    outcome, count = failed.most_common(1)[0]
+    return f"{count} of {len(probes)} palpations {WHAT[outcome]}: {HINTS[outcome]}"
 
 
 def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Probe], None] | None = None) -> dict:
@@ -120,16 +128,18 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     try:
         servo.start()  # homes the arm first, supervised: after a category-0 stop it may lie anywhere
         xy = planner.next_probe()
-        first = (xy[0], xy[1], p.clearance_mm) if xy is not None else (0.0, 0.0, p.clearance_mm)
+        start = (0.0, 0.0) if xy is None else (xy[0] if p.mode == "sliding" else xy)
+        first = (start[0], start[1], p.clearance_mm)
         servo.run(MoveTo(first, p.travel_speed_mm_s, p.accel_mm_s2))
         tare = HoldAndCollect(p.tare_samples, where=first)
         servo.run(tare)
         servo.forces.tare(tare.samples)
         while xy is not None:
-            probes.append(palpate(bench, settings, xy))
-            planner.observe(probes[-1])
-            if progress:
-                progress(len(probes), max(planner.expected_total, len(probes)), probes[-1])
+            for probe in palpations(bench, settings, xy):
+                probes.append(probe)
+                planner.observe(probe)
+                if progress:
+                    progress(len(probes), max(planner.expected_total, len(probes)), probe)
             xy = planner.next_probe()
         servo.stop()  # parks at the rest pose, then the amplifiers go off
     except ScanFault:
@@ -137,8 +147,12 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     finally:
         servo.stop()
     lumps, verdict, model = _estimate(planner, probes, settings)
+    failing = failure_reason(probes)
+    if failing:
+        verdict = "undetermined"  # palpations that keep failing decide nothing, least of all "no lump"
     body = {
         "strategy": settings.scan.strategy,
+        "palpation": p.mode,
         "seed": settings.scan.seed,
         "palpations": len(probes),
         "robot_time_s": round(bench.clock.now() - robot_start, 3),
@@ -146,11 +160,14 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
         "max_contact_force_n": round(servo.max_contact_force_n, 4),
         "sensor": servo.health.summary(),  # re-tares at approaches and the largest drift found (control.health)
         "faults": faults,
+        "outcomes": dict(Counter(pr.outcome for pr in probes)),
         "verdict": verdict,
         "model": model,
         "lumps": [lump.as_dict() for lump in lumps],
         "probes": [pr.as_dict() for pr in probes],
     }
+    if failing:
+        body["undetermined_reason"] = failing
     true_peak_n = servo.true_max_contact_force_n
     if true_peak_n is not None:  # in simulation: what the tissue really took, at every physics step
         body["truth"] = {"max_contact_force_n": round(true_peak_n, 4)}

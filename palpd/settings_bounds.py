@@ -49,7 +49,13 @@ BOUNDS: dict[str, Bound] = {
     "palpation.approach_speed_mm_s": Bound(100.0, "mm/s", "the probe must be able to stop at first contact"),
     "palpation.travel_speed_mm_s": Bound(300.0, "mm/s", "travel stays well below safety.max_tip_speed_mm_s's bound"),
     "palpation.hold_s": Bound(60.0, "s", "a longer hold is a creep test, not a palpation", low_inclusive=True),
+    "palpation.sliding_speed_mm_s": Bound(50.0, "mm/s", "a faster slide drags and shears the tissue"),
+    "palpation.modulation_hz": Bound(20.0, "Hz", "the servo must trace each cycle with enough samples to fit it"),
+    "palpation.contact_filter_s": Bound(0.1, "s", "a slower filter finds contact millimetres late at the approach speed",
+                                        low_inclusive=True),
     "safety.force_cap_n": Bound(8.5, "N", "the Phantom Premium 1.5A's peak tip force: a higher cap never trips"),
+    "safety.max_lateral_force_n": Bound(8.5, "N", "the Phantom Premium 1.5A's peak tip force: a higher limit "
+                                                  "never trips"),
     "safety.workspace_margin_mm": Bound(50.0, "mm", "the box guards the tissue, not the whole reach of the arm",
                                         low_inclusive=True),
     "safety.max_tip_speed_mm_s": Bound(1000.0, "mm/s", "over twice the fastest move palpd commands: a higher "
@@ -108,7 +114,7 @@ def _workspace_z(s) -> str | None:
 def _speeds(s) -> str | None:
     limit = s.safety.max_tip_speed_mm_s
     for name in ("palpation.speed_mm_s", "palpation.approach_speed_mm_s", "palpation.travel_speed_mm_s",
-                 "safety.retract_speed_mm_s"):
+                 "palpation.sliding_speed_mm_s", "safety.retract_speed_mm_s"):
         section, key = name.split(".")
         speed = getattr(getattr(s, section), key)
         if speed >= limit:

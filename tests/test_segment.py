@@ -33,8 +33,7 @@ def hand_session(k=0.12, count=12, seed=5, drift_n_per_s=(0.0, 0.0, 0.02)):
     bench.world.hand = hand
     bench.world.arm.q = list(hand.q_at(0.0))  # the person picked the probe up before the session
     bench.world.faults.sensor_drift_n_per_s = drift_n_per_s
-    p = settings.palpation
-    session = ManualSession(Segmenter(p.contact_on_n, p.contact_off_n), hand.end_s + 0.3)
+    session = ManualSession(Segmenter(0.06, 0.03), hand.end_s + 0.3)  # untared and drifting: the manual floors
     bench.servo.start(home=False)  # the person holds the arm: it is not taken home
     bench.servo.run(session)  # not tared: the segmenter tracks the zero itself
     bench.servo.stop(park=False)  # the person holds the arm: power off where it is

@@ -31,6 +31,7 @@ class Tissue(_Strict):
     stiffness_n_per_mm: PositiveFloat = 0.12
     exponent: Annotated[float, Field(ge=0.5, le=3.0)] = 1.0
     damping_n_s_per_mm: NonNegativeFloat = 0.0
+    friction: Annotated[float, Field(ge=0.0, le=2.0)] = 0.0  # sliding (Coulomb) friction: lateral / normal force
     map: Optional[str] = None
 
 

@@ -52,6 +52,19 @@ def hunt_crossley_n(k: float, exponent: float, damping: float, depth_mm: float, 
     return max(0.0, k * power + damping * power * rate_mm_s)
 
 
+def sliding_friction_n(normal_n: float, friction: float, vx_mm_s: float, vy_mm_s: float) -> tuple[float, float]:
+    """Lateral drag (N) on a tip moving at (vx, vy) while pressing with normal_n: Coulomb friction against the
+    motion, smoothed below SLIP_MM_S so that a tip at rest feels none (and the physics step stays stable)."""
+    speed = math.hypot(vx_mm_s, vy_mm_s)
+    if speed == 0.0 or normal_n <= 0.0 or friction == 0.0:
+        return 0.0, 0.0
+    scale = -friction * normal_n / math.hypot(speed, SLIP_MM_S)
+    return scale * vx_mm_s, scale * vy_mm_s
+
+
+SLIP_MM_S = 1.0
+
+
 class _GridMap:
     """A measured map resampled once onto a fine grid, then read bilinearly each tick."""
 

@@ -18,7 +18,7 @@ from drivers.sim.arm import SimArm
 from drivers.sim.faults import SimFaults
 from drivers.sim.nano17 import SimNano17
 from drivers.sim.scene import Scene
-from drivers.sim.tissue import StiffnessField, hunt_crossley_n
+from drivers.sim.tissue import StiffnessField, hunt_crossley_n, sliding_friction_n
 
 PHYSICS_STEP_S = 0.0005
 NO_FORCE = (0.0, 0.0, 0.0)
@@ -160,10 +160,13 @@ class SimWorld:
         depth_mm = -1000.0 * tip[2]
         if depth_mm <= 0.0:
             return NO_FORCE
-        rate_mm_s = 0.0
-        if self._tissue.damping_n_s_per_mm:
-            rate_mm_s = -1000.0 * self.frame.vector_from_robot(model.tip_velocity(q, tuple(self.arm.qd)))[2]
+        vx = vy = vz = 0.0
+        if self._tissue.damping_n_s_per_mm or self._tissue.friction:  # the Jacobian costs: only when it matters
+            vx, vy, vz = (1000.0 * v for v in self.frame.vector_from_robot(model.tip_velocity(q, tuple(self.arm.qd))))
         k = self.felt_stiffness(1000.0 * tip[0], 1000.0 * tip[1])
-        normal_n = hunt_crossley_n(k, self._tissue.exponent, self._tissue.damping_n_s_per_mm, depth_mm, rate_mm_s)
+        normal_n = hunt_crossley_n(k, self._tissue.exponent, self._tissue.damping_n_s_per_mm, depth_mm, -vz)
         normal_n += self.faults.extra_normal_force_n(1000.0 * tip[0], 1000.0 * tip[1], depth_mm)
-        return self.frame.vector_to_robot((0.0, 0.0, normal_n))
+        # The tissue drags the sliding tip along its surface; the indenter's normal response is the same moving
+        # or not (a soft tissue relaxes under a smooth probe faster than it slides: no ploughing term).
+        drag_x, drag_y = sliding_friction_n(normal_n, self._tissue.friction, vx, vy)
+        return self.frame.vector_to_robot((drag_x, drag_y, normal_n))

@@ -1,130 +1,124 @@
-"""palpd bench tradeoff: palpations and robot time to reach the accuracy targets, active vs raster vs random,
-and the speed-for-accuracy curve of the active scan (confidence, indentation speed, depth)."""
+"""palpd bench tradeoff: robot time against accuracy over scenes × seeds × settings, each scan run as a
+user runs it (its own stop rule), as independent tasks on Dask (or a process pool), with the Pareto front."""
 from __future__ import annotations
 
 import csv
 import json
+import math
 import sys
 from pathlib import Path
 
-TARGET = {"center_mm": 1.0, "radius_mm": 1.0, "iou": 0.9}
-BUDGET = 81
-RASTER_SIDES = (5, 7, 9)  # each size is a whole scan of its own: every side would cost 271 palpations per run
-CURVE = {"confidence": [0.7, 0.9, 0.99], "speed_mm_s": [5.0, 20.0, 40.0], "depth_mm": [2.0, 4.0, 6.0]}
-
 
 def add_parser(kinds):
-    bench = kinds.add_parser("tradeoff", help="active vs raster vs random to the accuracy targets; speed-for-accuracy curve")
+    bench = kinds.add_parser("tradeoff", help="robot time against accuracy over scenes, seeds and settings; "
+                                              "the Pareto front (Dask or a process pool)")
     bench.add_argument("--scenes", nargs="+", metavar="PATH|NAME",
                        help="scene files, shipped scene names or directories of *.toml scenes (default: every "
                             "shipped scene, `palpd scenes`)")
-    bench.add_argument("--seeds", type=int, default=3, metavar="N")
-    bench.add_argument("--curve-scene", default="paper", metavar="NAME",
-                       help="scene (by name) of the speed-for-accuracy curve, seed 0; 'none' to skip it")
-    bench.add_argument("--out", default="out/tradeoff", metavar="DIR", help="where the CSVs and the plot go")
-    bench.add_argument("--json", action="store_true")
+    bench.add_argument("--seeds", type=int, default=2, metavar="N", help="seeds 0..N-1 of every scene (default 2)")
+    bench.add_argument("--grid", metavar="FILE.toml",
+                       help="the settings to compare, as [[run]] tables (default: the built-in grid, see "
+                            "docs/tradeoff.md)")
+    bench.add_argument("--scheduler", default="local", metavar="local|tcp://HOST:PORT",
+                       help="local: a Dask LocalCluster on this machine (a process pool without the cluster "
+                            "extra); or the address of a running Dask scheduler")
+    bench.add_argument("--workers", type=int, metavar="N", help="local workers (default: one per CPU)")
+    bench.add_argument("--config", metavar="FILE", help="base settings (TOML) every run starts from")
+    bench.add_argument("--out", default="out/tradeoff", metavar="DIR",
+                       help="where tradeoff.csv, settings.csv, failures.csv and pareto.png go")
+    bench.add_argument("--json", action="store_true", help="print the per-setting summary as JSON")
     return bench
 
 
 def run(args) -> int:
+    from palpd.config import load_settings
+    from palpd.errors import UsageError
+    from palpd.tradeoff import grid
+
+    if args.seeds < 1 or (args.workers is not None and args.workers < 1):
+        raise UsageError("--seeds and --workers must be at least 1")
+    entries = grid.load_grid(args.grid) if args.grid else grid.DEFAULT_GRID
+    runs = grid.runs(_scenes(args.scenes), args.seeds, entries, load_settings(args.config))
+    rows, failures = _sweep(runs, args.scheduler, args.workers)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    _report(rows, failures, out, args.json)
+    return 1 if failures else 0
+
+
+def _scenes(specs) -> list:
     from drivers.sim.scene import load_scene
     from palpd.errors import UsageError
     from palpd.shipped import resolve_scene, scene_names
 
-    specs = args.scenes or scene_names()
+    specs = specs or scene_names()
     paths = [q for p in map(Path, specs) for q in (sorted(p.glob("*.toml")) if p.is_dir() else [resolve_scene(p)])]
-    if not paths or args.seeds < 1:
-        raise UsageError(f"--scenes {' '.join(specs)}: no *.toml scenes there (or --seeds below 1)")
-    scenes = [load_scene(p) for p in paths]
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    rows = _races(scenes, args.seeds)
-    curve = [row for scene in scenes if scene.lump and scene.name == args.curve_scene for row in _curve(scene, 0)]
-    _write_csv(out / "tradeoff.csv", rows)
-    _write_csv(out / "curve.csv", curve)
-    _plot_curve(curve, out / "curve.png")
-    summary = _summary(rows)
-    print(json.dumps(summary) if args.json else _table(summary) + f"\nwritten: {out}/tradeoff.csv, curve.csv, curve.png")
-    return 0
+    if not paths:
+        raise UsageError(f"--scenes {' '.join(specs)}: no *.toml scenes there")
+    return [load_scene(p) for p in paths]
 
 
-def _races(scenes, seeds: int) -> list[dict]:
-    """Every strategy on every scene and seed, with a progress bar (a full run takes minutes)."""
+def _sweep(runs, scheduler: str, workers) -> tuple[list[dict], list[dict]]:
+    """(rows, failures), in the order of the runs, with a progress bar; each failure is said as it happens."""
     from tqdm import tqdm
 
-    from palpd.commands._tradeoff_runs import first_on_target_active, first_on_target_random, first_on_target_raster
+    from palpd.tradeoff.runs import run_one
+    from palpd.tradeoff.schedulers import execute
 
-    runs = [(scene, seed, run) for scene in scenes for seed in range(seeds)
-            for run in (first_on_target_active, first_on_target_raster, first_on_target_random)]
-    rows = []
-    with tqdm(runs, desc="tradeoff", unit="scan", disable=None) as bar:
-        for scene, seed, run in bar:
-            rows.append(run(scene, seed))
-            bar.write(f"{scene.name} seed {seed} {rows[-1]['strategy']}: palpations to target "
-                      f"{rows[-1]['palpations']}, robot time {rows[-1]['robot_time_s']} s", file=sys.stderr)
-    return rows
+    with tqdm(total=len(runs), desc="tradeoff", unit="scan", disable=None, file=sys.stderr) as bar:
+        def done(index, _row, error):
+            bar.update()
+            if error:
+                bar.write(f"palpd: run failed: {runs[index].name}: {error}", file=sys.stderr)
 
-
-def _curve(scene, seed: int) -> list[dict]:
-    from palpd.commands._tradeoff_runs import active_scan
-
-    rows = []
-    for knob, values in CURVE.items():
-        for value in values:
-            rows.append({"scene": scene.name, "seed": seed, "knob": knob, "value": value,
-                         **active_scan(scene, seed, {knob: value})})
-    return rows
+        results = execute(run_one, runs, scheduler, workers, done)
+    rows = [row for row, _ in results if row is not None]
+    failures = [{"run": runs[i].name, "error": error} for i, (_, error) in enumerate(results) if error]
+    return rows, failures
 
 
-def _summary(rows: list[dict]) -> dict:
-    out = {}
-    for strategy in ("active", "raster", "random"):
-        mine = [r for r in rows if r["strategy"] == strategy and r["lumps_true"] > 0]
-        hit = [r for r in mine if r["palpations"] is not None]
-        out[strategy] = {
-            "runs": len(mine), "reached": len(hit),
-            "palpations_mean": round(sum(r["palpations"] for r in hit) / len(hit), 1) if hit else None,
-            "robot_time_s_mean": round(sum(r["robot_time_s"] for r in hit) / len(hit), 1) if hit else None,
-            "false_lumps_no_lump_scenes": sum(r["false_lumps"] for r in rows
-                                              if r["strategy"] == strategy and r["lumps_true"] == 0),
-        }
-    return out
+def _report(rows: list[dict], failures: list[dict], out: Path, as_json: bool) -> None:
+    from palpd.tradeoff.pareto import per_scene_lead, plot, settings_summary
+    from palpd.tradeoff.runs import COLUMNS
+
+    _write_csv(out / "tradeoff.csv", rows, COLUMNS)
+    _write_csv(out / "failures.csv", failures, ["run", "error"]) if failures else (out / "failures.csv").unlink(
+        missing_ok=True)
+    summary = settings_summary(rows) if rows else []
+    _write_csv(out / "settings.csv", summary, list(summary[0]) if summary else [])
+    if rows:
+        plot(rows, summary, out / "pareto.png")
+    leads = per_scene_lead(rows)
+    if as_json:
+        print(json.dumps({"settings": summary, "scenes": leads, "failures": len(failures)}, default=str))
+    else:
+        print(_table(summary, leads, len(rows), len(failures)))
+        print(f"written: {out}/tradeoff.csv, settings.csv, pareto.png" + (", failures.csv" if failures else ""))
 
 
-def _table(summary: dict) -> str:
-    lines = [f"to centre <= {TARGET['center_mm']} mm, radius <= {TARGET['radius_mm']} mm, IoU >= {TARGET['iou']} "
-             f"(budget {BUDGET}):", "strategy  reached  palpations  robot time  false lumps (no-lump scenes)"]
-    for name, s in summary.items():
-        lines.append(f"{name:8s}  {s['reached']}/{s['runs']:<5d}  {s['palpations_mean']!s:>10}  "
-                     f"{s['robot_time_s_mean']!s:>8} s  {s['false_lumps_no_lump_scenes']}")
+def _table(summary: list[dict], leads: list[dict], runs: int, failed: int) -> str:
+    lines = [f"{runs} scans ({failed} failed); medians per setting over scenes × seeds; * = on the Pareto front",
+             "strategy  palpation  setting                 runs  palpations  robot s    IoU    centre mm"]
+    for s in summary:
+        lines.append(f"{s['strategy']:8s}  {s['palpation']:9s}  {s['setting']:22s}  {s['runs']:4d}  "
+                     f"{s['palpations']:10.1f}  {s['robot_time_s']:7.1f}  {s['iou']:.3f}{'*' if s['front_iou'] else ' '}"
+                     f"  {_mm(s['center_error_mm'])}{'*' if s['front_center'] else ''}")
+    if leads:
+        lines.append("per scene: best active IoU within the discrete raster's median robot time vs its median IoU")
+        for lead in leads:
+            best = "none that fast" if lead["best_active_iou"] is None else (
+                f"{lead['best_active_iou']:.3f} ({lead['lead']:+.3f})")
+            lines.append(f"  {lead['scene']:24s} raster {lead['raster_median_time_s']:6.1f} s, IoU "
+                         f"{lead['raster_median_iou']:.3f}; active {best}")
     return "\n".join(lines)
 
 
-def _write_csv(path: Path, rows: list[dict]) -> None:
-    if not rows:
-        return
+def _mm(value: float) -> str:
+    return "not found" if math.isinf(value) else ("n/a" if math.isnan(value) else f"{value:.3f}")
+
+
+def _write_csv(path: Path, rows: list[dict], columns: list[str]) -> None:
     with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=list(rows[0]))
+        writer = csv.DictWriter(f, fieldnames=columns)
         writer.writeheader()
         writer.writerows(rows)
-
-
-def _plot_curve(rows: list[dict], path: Path) -> None:
-    if not rows:
-        return
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 5))
-    for knob, marker in zip(CURVE, "osD"):
-        mine = [r for r in rows if r["knob"] == knob and r["max_center_error_mm"] is not None]
-        ax.scatter([r["robot_time_s"] for r in mine], [r["max_center_error_mm"] + r["max_radius_error_mm"] for r in mine],
-                   marker=marker, label=knob)
-    ax.set_xlabel("robot time (s)")
-    ax.set_ylabel("centre + radius error (mm)")
-    ax.set_title("active scan: speed for accuracy")
-    ax.legend()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)

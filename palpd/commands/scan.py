@@ -11,7 +11,9 @@ def add_parser(subparsers):
     scan.add_argument("--scene", required=True, metavar="FILE|NAME",
                       help="scene file (TOML) or the name of a shipped scene (`palpd scenes`)")
     scan.add_argument("--strategy", choices=["active", "raster", "random"], help="where to palpate (default raster)")
-    scan.add_argument("--max-palpations", type=int, metavar="N")
+    scan.add_argument("--palpation", choices=["discrete", "sliding"],
+                      help="press point by point, or slide along paths in contact (default discrete)")
+    scan.add_argument("--max-palpations", type=int, metavar="N", help="budget (sliding: of paths)")
     scan.add_argument("--confidence", type=float, metavar="P",
                       help="stop once the lump hypothesis the evidence chose has this weight (active; default 0.9)")
     scan.add_argument("--tolerance-mm", type=float, metavar="T",
@@ -34,14 +36,18 @@ def run(args) -> int:
     from palpd.shipped import load_scene_named
 
     settings = scan_settings(args.config, args.strategy, args.max_palpations, args.seed, args.depth_mm,
-                             args.speed_mm_s, args.confidence, args.train, args.tolerance_mm)
+                             args.speed_mm_s, args.confidence, args.train, args.tolerance_mm,
+                             args.palpation)
     scene = load_scene_named(args.scene)
     # Heavy imports (scipy.stats, scikit-learn, matplotlib) only once arguments, config and scene are known good.
     from palpd.files import write_json
 
     def started(planner) -> None:
+        p = settings.palpation
+        how = (f"depth {p.depth_mm} mm at {p.speed_mm_s} mm/s" if p.mode == "discrete" else
+               f"sliding paths at {p.sliding_speed_mm_s} mm/s, {p.sliding_depth_mm} ± {p.modulation_mm} mm deep")
         _say(args, f"scan of scene {scene.name!r}: {settings.scan.strategy}, up to {planner.expected_total} "
-                   f"palpations, depth {settings.palpation.depth_mm} mm at {settings.palpation.speed_mm_s} mm/s")
+                   f"{'palpations' if p.mode == 'discrete' else 'paths'}, {how}")
 
     report, planner = run_simulated_scan(settings, scene, _progress_printer(args), args.realtime,
                                          args.max_palpations, started)
@@ -58,6 +64,9 @@ def run(args) -> int:
         fault = report["faults"][0]
         print(f"palpd: scan stopped by a safety fault ({fault['code']}): {fault['message']}", file=sys.stderr)
         return EXIT_FAILURE
+    if report.get("undetermined_reason"):
+        print(f"palpd: undetermined: {report['undetermined_reason']}", file=sys.stderr)
+        return EXIT_UNDETERMINED
     if report["verdict"] == "undetermined":
         print(f"palpd: undetermined: {report['palpations']} palpations did not decide whether and which lumps "
               f"there are (raise --max-palpations or lower --confidence)", file=sys.stderr)
@@ -68,7 +77,9 @@ def run(args) -> int:
 def _progress_printer(args):
     def show(done: int, total: int, probe) -> None:
         x, y = probe.record.xy_mm
-        k = "no fit: " + probe.rejected if probe.fit is None else f"k = {probe.stiffness_n_per_mm:.3f} N/mm"
+        k = f"{probe.outcome}: {probe.rejected}" if probe.fit is None else f"k = {probe.stiffness_n_per_mm:.3f} N/mm"
+        if probe.stiffness_bound_n_per_mm is not None:
+            k += f" (k {'≥' if probe.outcome == 'too_stiff' else '≤'} {probe.stiffness_bound_n_per_mm:.3g} N/mm)"
         _say(args, f"[{done:3d}/{total}] ({x:6.1f}, {y:6.1f}) mm  {k}")
 
     return show

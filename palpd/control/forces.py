@@ -9,6 +9,7 @@ from __future__ import annotations
 from drivers.geometry import TissueFrame
 from drivers.interfaces import ForceSample
 from drivers.phantom import model
+from palpd.control.contact import SensorNoise, measure_noise
 
 Vec3 = tuple[float, float, float]
 
@@ -20,11 +21,13 @@ class ForceReader:
         self.q_aligned = q_aligned
         self._tilt = model.SensorTilt(q_aligned)
         self.bias_n: Vec3 = (0.0, 0.0, 0.0)
+        self.noise: SensorNoise | None = None  # measured at the last tare: contact thresholds scale with it
 
     def tare(self, samples: list[ForceSample]) -> None:
-        """Take the mean of samples read out of contact as the sensor's zero."""
+        """Take the mean of samples read out of contact as the sensor's zero, and measure their noise."""
         n = len(samples)
         self.bias_n = tuple(sum(s.force_n[i] for s in samples) / n for i in range(3))  # type: ignore[assignment]
+        self.noise = measure_noise(samples) or self.noise
 
     def tissue_force(self, sample: ForceSample, q: Vec3) -> Vec3:
         f, b = sample.force_n, self.bias_n

@@ -1,20 +1,29 @@
 """One palpation as a state machine: above the point, approach, contact, indent, hold, retract.
 
-Contact is detected on the bias-compensated normal force with hysteresis, by
-the same segmenter that finds palpations in a hand-palpated (manual) stream, and
-the record is the segment it finds. The indentation stops at the configured
-depth or force, whichever comes first.
+Contact is detected on the bias-compensated, low-passed normal force with
+hysteresis (thresholds scaled to the noise the tare measured: palpd.control.contact),
+by the same segmenter that finds palpations in a hand-palpated (manual) stream,
+and the record is the segment it finds, its contact point found again from the
+whole trace once the palpation is over (`finish`, on the host: palpd.control.onset).
+The indentation stops at the configured depth or force, whichever comes first.
+A palpation is always recorded where it was aimed (`target_xy_mm`; `xy_mm` is
+the contact point when there was one, else the target too).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
 
+from palpd.control.contact import ContactThresholds
+from palpd.control.onset import refine
 from palpd.control.segment import Segment, Segmenter
 from palpd.control.tasks import MoveTo
 
 Vec3 = tuple[float, float, float]
 NO_CONTACT_MARGIN_MM = 10.0  # how far below the nominal surface to look before giving up
+SLOW_ZONE_MM = 2.5  # from this high above the nominal surface down, the approach goes at the indentation speed
+ARM_MM = 1.5  # contact is looked for from here down: below the drift check (and re-tare) and the slowdown
+LOOKBACK_S = 2.5  # the approach kept for finding the contact point again: from the slow zone to the margin
 # speed_profile = "varying": the indentation speed swings between (1 - SWING) and (1 + SWING) times
 # speed_mm_s, SPEED_CYCLES times over the depth, so the same depths are pressed slowly and quickly.
 SPEED_SWING = 0.8
@@ -26,8 +35,9 @@ class PalpationRecord:
     """The force-displacement trace of one palpation (tissue frame)."""
 
     target_xy_mm: tuple[float, float]
-    xy_mm: tuple[float, float] = (0.0, 0.0)
+    xy_mm: tuple[float, float] | None = None  # the contact point; the target when there was none
     contact_z_mm: float | None = None
+    contact: bool = False  # a contact point was found
     depth_mm: list[float] = field(default_factory=list)  # loading phase, below the contact point
     force_n: list[float] = field(default_factory=list)
     unload_depth_mm: list[float] = field(default_factory=list)
@@ -37,19 +47,46 @@ class PalpationRecord:
     t_start_s: float = 0.0
     t_end_s: float = 0.0
     t_first_tick_s: float | None = None  # the task's first tick: where its segmenter began (replay starts there)
+    t_armed_s: float | None = None  # when contact began to be looked for (replay arms its segmenter after it)
+    dropped_samples: int = 0  # samples whose force was NaN or infinite, left out
+    contact_on_n: float = 0.0  # the thresholds contact was judged by (scaled to the measured noise)
+    contact_off_n: float = 0.0
+    contact_filter_s: float = 0.0
+    noise_sd_n: float | None = None
+    lowest_z_mm: float = math.inf  # the deepest the tip went (tissue frame: the nominal surface is z = 0)
+    force_lead_s: float = 0.0  # how much newer the force samples were than the tip readings (aligned for the fit)
+
+    def __post_init__(self) -> None:
+        if self.xy_mm is None:
+            self.xy_mm = tuple(self.target_xy_mm)
+
+
+def palpation_segmenter(on_n: float, off_n: float, filter_s: float) -> Segmenter:
+    """The segmenter of one autonomous palpation. Its zero is followed from the first sample (the sensor
+    may have drifted since the tare); contact is looked for from the approach on (arm it then), not while
+    travelling; no least press or depth: a
+    palpation that hits the force limit early is the stiffest evidence there is."""
+    segmenter = Segmenter(on_n, off_n, min_peak_n=0.0, min_depth_mm=0.0, filter_s=filter_s, lookback_s=LOOKBACK_S,
+                          baseline_n=None)
+    segmenter.armed = False
+    return segmenter
 
 
 class Palpation:
-    def __init__(self, xy_mm: tuple[float, float], settings) -> None:
+    def __init__(self, xy_mm: tuple[float, float], settings, thresholds: ContactThresholds | None = None) -> None:
         self.s = settings
-        self.record = PalpationRecord(tuple(xy_mm))
+        th = thresholds or ContactThresholds(settings.contact_on_n, settings.contact_off_n, settings.contact_filter_s)
+        self.record = PalpationRecord(tuple(xy_mm), contact_on_n=th.on_n, contact_off_n=th.off_n,
+                                      noise_sd_n=th.noise_sd_n)
         self._above_point = (xy_mm[0], xy_mm[1], settings.clearance_mm)
         self._phase = "above"
         self._task = MoveTo(self._above_point, settings.travel_speed_mm_s, settings.accel_mm_s2)
         self._target_z = settings.clearance_mm
         self._last_t = None
         self._hold_until = 0.0
-        self.segmenter = Segmenter(settings.contact_on_n, settings.contact_off_n)
+        # No least press or depth: a palpation that hits the force limit early is the stiffest evidence there is.
+        self.segmenter = palpation_segmenter(th.on_n, th.off_n, th.filter_s)
+        self.record.contact_filter_s = th.filter_s
         self._segment: Segment | None = None
         self.done = False
 
@@ -59,15 +96,17 @@ class Palpation:
         if self._last_t is None:
             self.record.t_first_tick_s = tick.t_s
         self._last_t = tick.motion_t_s
-        found = self.segmenter.push(tick.t_s, tick.tip_mm, tick.normal_force_n)
-        if found is not None and self._segment is None:
-            self._segment = found
+        self.record.lowest_z_mm = min(self.record.lowest_z_mm, tick.tip_mm[2])
+        found = self.segmenter.push(tick.t_s, tick.tip_mm, tick.normal_force_n, tick.sample.t_s)
+        if found is not None and (self._segment is None or found.peak_force_n > self._segment.peak_force_n):
+            self._segment = found  # a brush before the press is not the palpation
         return getattr(self, "_" + self._phase)(tick, dt)
 
     def _above(self, tick, dt) -> Vec3:
         target = self._task.step(tick)
         if self._task.done:
             self._phase, self.record.t_start_s = "approach", tick.t_s
+            self.segmenter.forget()
         return target
 
     def _approach(self, tick, dt) -> Vec3:
@@ -75,7 +114,16 @@ class Palpation:
             self.record.contact_z_mm = self.segmenter.current.contact_z_mm
             self._phase = "indent"
             return self._indent(tick, 0.0)
-        self._target_z -= self.s.approach_speed_mm_s * dt
+        # Within SLOW_ZONE_MM of the surface the approach already moves at the indentation speed, so contact
+        # begins at the speed the press goes on at: no start-up transient when the threshold fires.
+        near = self._target_z <= SLOW_ZONE_MM
+        if self._target_z <= ARM_MM and not self.segmenter.armed:
+            # Armed here, below where the sensor's zero is checked (and re-tared) at each approach
+            # (palpd.control.health), from a zero read just before: a re-tare is not a contact.
+            self.segmenter.armed = True
+            self.segmenter.forget()
+            self.record.t_armed_s = tick.t_s
+        self._target_z -= (min(self.s.speed_mm_s, self.s.approach_speed_mm_s) if near else self.s.approach_speed_mm_s) * dt
         if self._target_z < -(self.s.depth_mm + NO_CONTACT_MARGIN_MM):
             self._start_retract(tick, "no_contact")
         return self._setpoint()
@@ -108,7 +156,9 @@ class Palpation:
         target = self._task.step(tick)
         if self._task.done:
             self.record.t_end_s = tick.t_s
-            self._take_segment()
+            self.record.dropped_samples = self.segmenter.dropped
+            if self._segment is None and self.record.stop_reason == "no_contact":
+                self._segment = self._approach_segment()
             self.done = True
         return target
 
@@ -116,14 +166,29 @@ class Palpation:
         self.record.max_force_n = max(self.record.max_force_n, tick.normal_force_n)
         return self.record.contact_z_mm - tick.tip_mm[2]
 
-    def _take_segment(self) -> None:
-        """The loading and unloading traces, as the segmenter cut them out of the stream."""
+    def _approach_segment(self) -> Segment | None:
+        """No threshold fired all the way down: the approach itself, in case tissue too soft to reach the
+        threshold was pressed after all (the onset refit tells a rise from a flat line)."""
+        samples = self.segmenter.approach_samples
+        if len(samples) < 8:
+            return None
+        seg = Segment(samples[-1][0], samples[-1][3], self.segmenter.baseline_n or 0.0, samples=samples,
+                      detected_at=len(samples) - 1, force_lead_s=self.segmenter.force_lead_s)
+        return seg
+
+    def finish(self, refit_onset: bool = True) -> PalpationRecord:
+        """The record, its contact point found again from the whole trace (host side, after the run)."""
         seg, rec = self._segment, self.record
         if seg is None:
-            return
-        rec.contact_z_mm, rec.xy_mm = seg.contact_z_mm, seg.xy_mm
+            return rec
+        if not refine(seg, refit_onset or rec.stop_reason == "no_contact") and rec.stop_reason == "no_contact":
+            return rec  # an approach with no rise in it: no contact
+        rec.contact, rec.contact_z_mm, rec.xy_mm = True, seg.contact_z_mm, seg.xy_mm
         rec.depth_mm, rec.force_n = seg.depth_mm, seg.force_n
         rec.unload_depth_mm, rec.unload_force_n = seg.unload_depth_mm, seg.unload_force_n
+        rec.force_lead_s = seg.force_lead_s
+        rec.max_force_n = max(rec.max_force_n, seg.peak_force_n)
+        return rec
 
     def _start_retract(self, tick, reason: str) -> None:
         self.record.stop_reason = reason

@@ -14,6 +14,7 @@ import time
 
 from palpd.bench import Bench, check_reach
 from palpd.control.process import servo_main
+from palpd.control.contact import measure_noise
 from palpd.control.ring import FLAG_FAULT, SampleRing
 from palpd.control.safety import Fault
 from palpd.errors import PalpdError, ScanFault
@@ -66,10 +67,13 @@ class RemoteForces:
     def __init__(self, servo: "RemoteServo") -> None:
         self.servo = servo
         self.bias_n = (0.0, 0.0, 0.0)
+        self.noise = None
 
     def tare(self, samples) -> None:
-        """The child's ForceReader takes the mean of these samples as the sensor's zero."""
+        """The child's ForceReader takes the mean of these samples as the sensor's zero; their noise is
+        measured here too (the contact thresholds of the palpations sent to the child scale with it)."""
         self.servo.call("tare", list(samples))
+        self.noise = measure_noise(samples) or self.noise
 
 
 class RemoteTiming:

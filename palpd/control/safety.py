@@ -73,7 +73,7 @@ class SafetySupervisor:
         self.joint_ranges = tuple((low + margin, high - margin) for low, high in model.JOINT_LIMITS_RAD)
         self.box_mm = workspace_box_mm(settings, tissue_size_mm, home_mm)
         # The category-0 checks first; the encoder check also keeps the previous pose, so it must see every tick.
-        self.checks = [self._device, self._encoders, self._stall, self._sample, self._force, self._rigid,
+        self.checks = [self._device, self._encoders, self._stall, self._sample, self._force, self._lateral, self._rigid,
                        self._limits, self._speed, self._tracking]
         self.category_0_checks = [self._device, self._encoders]
         self._limits_now = (self.joint_ranges, self.box_mm)
@@ -189,6 +189,15 @@ class SafetySupervisor:
         force = _norm(tick.force_tissue_n)
         if force > self.s.force_cap_n:
             return Fault("force_cap", f"contact force {force:.2f} N above the cap of {self.s.force_cap_n} N", tick.t_s)
+        return None
+
+    def _lateral(self, tick) -> Fault | None:
+        """Drag on a sliding probe (or a press that skids): the tissue is being sheared, stop before it tears."""
+        fx, fy, _ = tick.force_tissue_n
+        lateral = math.hypot(fx, fy)
+        if lateral > self.s.max_lateral_force_n:
+            return Fault("lateral_force", f"lateral force {lateral:.2f} N above the limit of "
+                                          f"{self.s.max_lateral_force_n} N", tick.t_s)
         return None
 
     def _rigid(self, tick) -> Fault | None:

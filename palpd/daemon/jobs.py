@@ -47,6 +47,11 @@ def journal_entry(index: int, probe, t_s: float) -> dict:
         # the way out too: a damped model's fit uses it, and replay refits exactly what the scan fitted
         "unload_depth_mm": record.unload_depth_mm, "unload_force_n": record.unload_force_n,
         "t_first_tick_s": record.t_first_tick_s, "t_end_s": record.t_end_s,  # its raw samples, for replay
+        "t_start_s": record.t_start_s, "t_armed_s": record.t_armed_s, "outcome": probe.outcome, "stop_reason_detail": probe.rejected,
+        # how contact was judged (scaled to the measured noise) and aligned: replay cuts it again the same way
+        "contact_on_n": record.contact_on_n, "contact_off_n": record.contact_off_n,
+        "contact_filter_s": record.contact_filter_s, "force_lead_s": record.force_lead_s,
+        "dropped_samples": record.dropped_samples, "stiffness_bound_n_per_mm": probe.stiffness_bound_n_per_mm,
     }
 
 
@@ -79,7 +84,7 @@ class ScanJob:
         entry["recording"] = self.recording  # whose raw samples hold it (each run's servo clock starts anew)
         self.session.journal(entry)
         self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0,
-                               entry.get("target_xy_mm"))
+                               entry.get("target_xy_mm"), entry.get("outcome"), entry.get("stiffness_bound_n_per_mm"))
         publish_entry(worker, entry)
         worker.event("estimate", **self.estimator.estimate())
         worker.send({"kind": "map", "map": self.estimator.posterior_map()})  # made here: the learner is ours

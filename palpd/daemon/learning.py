@@ -33,13 +33,15 @@ class LearnerEstimator:
         self._next = None  # (palpations seen, answer): next_probe is asked by the planner and the estimate
 
     def observe(self, xy_mm, stiffness_n_per_mm: float | None, sd_n_per_mm: float = 0.0,
-                target_xy_mm=None) -> None:
-        """A journaled palpation; one without a stiffness counts where it was aimed (its record's
-        contact point is (0, 0) then), so the learner never asks for that spot again."""
+                target_xy_mm=None, outcome: str | None = None, bound_n_per_mm: float | None = None) -> None:
+        """A journaled palpation with its outcome (a censored one's bound is evidence too); one without a
+        stiffness counts where it was aimed, so the learner never asks for that spot again."""
         if stiffness_n_per_mm is None and target_xy_mm is not None:
             xy_mm = target_xy_mm
-        self.learner.observe((xy_mm[0] - self.cx, xy_mm[1] - self.cy), stiffness_n_per_mm, sd_n_per_mm)
-        if self.learner.obs.n > len(self.k_n_per_mm):  # the learner took it as a stiffness point
+        before = self.learner.obs.n
+        self.learner.observe((xy_mm[0] - self.cx, xy_mm[1] - self.cy), stiffness_n_per_mm, sd_n_per_mm,
+                             outcome=outcome, bound_n_per_mm=bound_n_per_mm)
+        if self.learner.obs.n > before and stiffness_n_per_mm is not None:  # a stiffness point (not a bound)
             self.xy_mm.append((float(xy_mm[0]), float(xy_mm[1])))
             self.k_n_per_mm.append(float(stiffness_n_per_mm))
 

@@ -15,7 +15,8 @@ from pathlib import Path
 from types import SimpleNamespace
 
 from palpd.bus.messages import SAMPLES_CHANNEL
-from palpd.control.segment import Segmenter
+from palpd.control.onset import refine
+from palpd.control.palpation import palpation_segmenter
 from palpd.daemon.jobs import resolved_scan
 from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.mcap import read_messages
@@ -61,14 +62,28 @@ def resegmented(trace: dict, samples: list, settings) -> dict:
     start, stop = bisect.bisect_left(times, t0), bisect.bisect_right(times, t1)
     if start == len(times) or times[start] != t0 or times[stop - 1] != t1:
         return trace  # not every tick of it was recorded
-    segmenter = Segmenter(settings.palpation.contact_on_n, settings.palpation.contact_off_n)
+    p = settings.palpation
+    segmenter = palpation_segmenter(trace.get("contact_on_n", p.contact_on_n), trace.get("contact_off_n", p.contact_off_n),
+                                    trace.get("contact_filter_s", 0.0))
+    t_approach, t_armed = trace.get("t_start_s") or t0, trace.get("t_armed_s") or t0
+    best, forgotten = None, False
     for t, tip, force in samples[start:stop]:
+        if t > t_approach and not forgotten:  # live, the task acts after its segmenter has taken that tick
+            segmenter.forget()
+            forgotten = True
+        if t > t_armed and not segmenter.armed:
+            segmenter.armed = True
+            segmenter.forget()
         segment = segmenter.push(t, tip, force)
-        if segment is not None:
-            return trace | {"xy_mm": list(segment.xy_mm), "depth_mm": segment.depth_mm, "force_n": segment.force_n,
-                            "unload_depth_mm": segment.unload_depth_mm, "unload_force_n": segment.unload_force_n,
-                            "segmented": True}
-    return trace | {"depth_mm": [], "force_n": [], "unload_depth_mm": [], "unload_force_n": [], "segmented": True}
+        if segment is not None and (best is None or segment.peak_force_n > best.peak_force_n):
+            best = segment
+    if best is None:
+        return trace | {"depth_mm": [], "force_n": [], "unload_depth_mm": [], "unload_force_n": [], "segmented": True}
+    best.force_lead_s = trace.get("force_lead_s", 0.0)
+    refine(best)
+    return trace | {"xy_mm": list(best.xy_mm), "depth_mm": best.depth_mm, "force_n": best.force_n,
+                    "unload_depth_mm": best.unload_depth_mm, "unload_force_n": best.unload_force_n,
+                    "segmented": True}
 
 
 def replay(session_dir: Path, settings) -> dict:
@@ -81,7 +96,8 @@ def replay(session_dir: Path, settings) -> dict:
         k, sd = refit(trace, settings)
         if trace.get("stiffness_n_per_mm") is not None and k is not None:
             worst_k = max(worst_k, abs(k - trace["stiffness_n_per_mm"]))
-        estimator.observe(trace["xy_mm"], k, sd, trace.get("target_xy_mm"))
+        outcome = "fit" if k is not None else trace.get("outcome")  # a censored reading stays a bound
+        estimator.observe(trace["xy_mm"], k, sd, trace.get("target_xy_mm"), outcome, trace.get("stiffness_bound_n_per_mm"))
     estimate = estimator.estimate()
     return {"palpations": len(traces), "segmented": sum(bool(t.get("segmented")) for t in traces), "max_stiffness_difference_n_per_mm": worst_k, "estimate": estimate,
             "recorded": recorded_estimate, "reproduced": same_lumps(estimate, recorded_estimate)}
@@ -104,7 +120,8 @@ def refit(trace: dict, settings) -> tuple[float | None, float]:
                              unload_depth_mm=trace.get("unload_depth_mm", []),
                              unload_force_n=trace.get("unload_force_n", []))
     try:
-        fit = fit_palpation(record, settings.stiffness, settings.servo.rate_hz)
+        fit = fit_palpation(record, settings.stiffness, settings.servo.rate_hz,
+                            settings.palpation.speed_profile == "varying")
     except FitRejected:
         return None, 0.0
     return fit.stiffness_n_per_mm, fit.stiffness_se_n_per_mm

@@ -108,7 +108,8 @@ class Supervisor:
         self.estimator = make_estimator(scan_settings(self.settings, scan), scan, self.bench.tissue_size_mm)
         for entry in session.entries:  # the learner relearns the journal in order: where it left off
             self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0,
-                                   entry.get("target_xy_mm"))
+                                   entry.get("target_xy_mm"), entry.get("outcome"),
+                                   entry.get("stiffness_bound_n_per_mm"))
         self.publish("estimate", self.now(), **self.estimator.estimate())
         self.show_map(self.estimator.posterior_map())
         for viewer in self.viewers:

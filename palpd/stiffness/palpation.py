@@ -17,10 +17,13 @@ from palpd.stiffness.models import MODELS
 RATE_WINDOW_S = 0.015
 
 
-def fit_palpation(record, stiffness_settings, rate_hz: float) -> StiffnessResult:
-    """Raises FitRejected with a named reason when the record gives no stiffness."""
+def fit_palpation(record, stiffness_settings, rate_hz: float, rate_varies: bool = False) -> StiffnessResult:
+    """Raises FitRejected with a named reason when the record gives no stiffness. rate_varies: the press
+    swung its speed (palpation.speed_profile = "varying"); only then may selection weigh a damping model,
+    which at one constant speed would buy itself out of the controller's start-up transient and any lag
+    left between force and position, not out of the tissue."""
     s = stiffness_settings
-    with_damping = s.model == SELECT or MODELS[s.model].needs_rate
+    with_damping = MODELS[s.model].needs_rate if s.model != SELECT else rate_varies
     depth, force = list(record.depth_mm), list(record.force_n)
     rate = list(depth_rate_mm_s(record.depth_mm, rate_hz))
     if with_damping and len(record.unload_depth_mm) >= 5:

@@ -9,9 +9,10 @@ observation noise).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.special import fdtrc
 
 from palpd.stiffness.fit import ModelFit, fit_model
 from palpd.stiffness.models import MODELS, candidates
@@ -19,7 +20,9 @@ from palpd.stiffness.samples import FitRejected, check_rise, prepare
 
 CRITERIA = ("aicc", "bic")
 CLEARLY_BETTER = 2.0  # Burnham & Anderson: a difference below 2 is no real support
+NOT_EXCLUDED = 6.0  # Kass & Raftery: below 6 the evidence against a model is not strong; its reading counts
 SELECT = "select"
+CURVATURE_P = 1e-3  # a curved model is tried only when a straight line is this unlikely to leave such curvature
 
 
 @dataclass(frozen=True)
@@ -73,6 +76,8 @@ def _select(samples, criterion: str, reference_depth_mm: float) -> StiffnessResu
     fits, scores = [], {}
     curved = _clearly_curved(samples, criterion)
     for candidate in candidates(samples.rate_mm_s is not None):
+        if candidate.name == "linear" and samples.n > 3:
+            continue  # through the contact point: but that point is itself estimated, and its error would be k's
         if not (candidate.linear or curved):
             continue  # a curved model cannot win where even a parabola does no better than a line
         if candidate.size >= samples.n - 1:
@@ -87,10 +92,18 @@ def _select(samples, criterion: str, reference_depth_mm: float) -> StiffnessResu
         raise FitRejected("no stiffness model could be fitted", "not_converged")
     best = min(scores.values())
     plausible = [(size, fit) for size, fit in fits if scores[fit.model] <= best + CLEARLY_BETTER]
-    chosen = min(plausible, key=lambda pair: pair[0])[1]
+    rivals = [fit for _, fit in fits if scores[fit.model] <= best + NOT_EXCLUDED]
+    chosen = _with_model_spread(min(plausible, key=lambda pair: pair[0])[1], rivals)
     if chosen.stiffness_n_per_mm <= 0:
         raise FitRejected(f"model {chosen.model} gives no positive stiffness", "no_rise")
     return StiffnessResult(chosen, criterion, scores)
+
+
+def _with_model_spread(chosen: ModelFit, plausible: list[ModelFit]) -> ModelFit:
+    """The chosen fit, its stiffness's standard error widened by how far the models not excluded read it:
+    when the data cannot tell a power law from an exponential, their tangents differ, and that is uncertainty."""
+    spread = max(abs(fit.stiffness_n_per_mm - chosen.stiffness_n_per_mm) for fit in plausible)
+    return replace(chosen, stiffness_se_n_per_mm=math.hypot(chosen.stiffness_se_n_per_mm, spread))
 
 
 def _clearly_curved(samples, criterion: str) -> bool:
@@ -109,4 +122,14 @@ def _clearly_curved(samples, criterion: str) -> bool:
         solution, *_ = np.linalg.lstsq(design, f, rcond=None)
         residual = f - design @ solution
         rss.append(float(residual @ residual))
-    return _criterion(rss[1], n, 3, criterion) < _criterion(rss[0], n, 2, criterion) - CLEARLY_BETTER
+    by_criterion = _criterion(rss[1], n, 3, criterion) < _criterion(rss[0], n, 2, criterion) - CLEARLY_BETTER
+    return by_criterion and _curvature_p(rss[0], rss[1], n) < CURVATURE_P
+
+
+def _curvature_p(rss_line: float, rss_parabola: float, n: int) -> float:
+    """The exact F-test of the parabola's one extra term: an information criterion's asymptotics do not hold
+    for a dozen samples, where noise alone bends a trace often enough to pass BIC by the margin."""
+    if rss_parabola <= 0.0:
+        return 0.0 if rss_line > 0.0 else 1.0
+    f_stat = (rss_line - rss_parabola) / (rss_parabola / (n - 3))
+    return float(fdtrc(1, n - 3, max(f_stat, 0.0)))

@@ -1,0 +1,116 @@
+"""Sliding palpation: touch down at the start of a path, hold a set indentation modulated by a small sinusoid,
+slide along the path, lift straight off at its end. The stream (position, depth, normal force) is the record;
+palpd.stiffness.sliding turns it into stiffness points along the path.
+
+Like every task, it only proposes setpoints: the servo's safety supervisor checks every tick (force cap,
+lateral drag, tracking...) and a stop lifts the probe along the tissue normal before anything else moves.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from palpd.control.palpation import NO_CONTACT_MARGIN_MM
+from palpd.control.tasks import MoveTo
+from palpd.control.trajectory import LinearMove
+
+Vec3 = tuple[float, float, float]
+SETTLE_CYCLES = 1.0  # modulation cycles at the start of the slide, in place, before the path begins
+
+
+@dataclass
+class SlidingRecord:
+    start_xy_mm: tuple[float, float]
+    end_xy_mm: tuple[float, float]
+    contact_z_mm: float | None = None
+    t_s: list[float] = field(default_factory=list)  # the sliding phase, one sample per tick
+    xy_mm: list[tuple[float, float]] = field(default_factory=list)
+    depth_mm: list[float] = field(default_factory=list)  # below the contact point
+    force_n: list[float] = field(default_factory=list)
+    max_force_n: float = 0.0
+    max_lateral_n: float = 0.0
+    stop_reason: str = ""
+
+
+class SlidingPalpation:
+    def __init__(self, start_xy_mm, end_xy_mm, settings) -> None:
+        self.s = settings
+        self.record = SlidingRecord(tuple(start_xy_mm), tuple(end_xy_mm))
+        self._above = (start_xy_mm[0], start_xy_mm[1], settings.clearance_mm)
+        self._task = MoveTo(self._above, settings.travel_speed_mm_s, settings.accel_mm_s2)
+        self._phase, self._z, self._xy = "travel", settings.clearance_mm, tuple(start_xy_mm)
+        self._path: LinearMove | None = None
+        self._t0 = self._last_t = 0.0
+        self.done = False
+
+    def step(self, tick) -> Vec3:
+        dt, self._last_t = tick.motion_t_s - self._last_t, tick.motion_t_s
+        return getattr(self, "_" + self._phase)(tick, dt)
+
+    def _travel(self, tick, dt) -> Vec3:
+        target = self._task.step(tick)
+        if self._task.done:
+            self._phase = "approach"
+        return target
+
+    def _approach(self, tick, dt) -> Vec3:
+        if tick.normal_force_n >= self.s.contact_on_n:
+            self.record.contact_z_mm, self._phase = tick.tip_mm[2], "press"
+            return self._setpoint()
+        self._z -= self.s.approach_speed_mm_s * dt
+        if self._z < -(self.s.sliding_depth_mm + NO_CONTACT_MARGIN_MM):
+            self._lift("no_contact")
+        return self._setpoint()
+
+    def _press(self, tick, dt) -> Vec3:
+        """Down to the set indentation at the indentation speed, then the modulation and the path begin."""
+        goal = self.record.contact_z_mm - self.s.sliding_depth_mm
+        self._z = max(goal, self._z - self.s.speed_mm_s * dt)
+        if self._z == goal:
+            self._phase, self._t0 = "slide", tick.motion_t_s
+            start, end = self.record.start_xy_mm, self.record.end_xy_mm
+            self._path = LinearMove((*start, 0.0), (*end, 0.0), self.s.sliding_speed_mm_s, self.s.accel_mm_s2)
+        return self._setpoint()
+
+    def _slide(self, tick, dt) -> Vec3:
+        if self._stopped_by(tick):
+            return self._setpoint()
+        tau = tick.motion_t_s - self._t0
+        self._keep(tick)
+        phase_s = tau - SETTLE_CYCLES / self.s.modulation_hz
+        self._xy = self._path.at(max(0.0, phase_s))[:2]
+        swing = self.s.modulation_mm * math.sin(2.0 * math.pi * self.s.modulation_hz * tau)
+        self._z = self.record.contact_z_mm - (self.s.sliding_depth_mm + swing)
+        if phase_s >= self._path.duration:
+            self._lift("path_end")
+        return self._setpoint()
+
+    def _stopped_by(self, tick) -> bool:
+        if tick.normal_force_n >= self.s.max_force_n:
+            self._lift("force")
+        elif tick.normal_force_n < self.s.contact_off_n:
+            self._lift("lost_contact")
+        return self._phase != "slide"
+
+    def _keep(self, tick) -> None:
+        r = self.record
+        r.t_s.append(tick.t_s)
+        r.xy_mm.append(tick.tip_mm[:2])
+        r.depth_mm.append(r.contact_z_mm - tick.tip_mm[2])
+        r.force_n.append(tick.normal_force_n)
+        r.max_force_n = max(r.max_force_n, tick.normal_force_n)
+        r.max_lateral_n = max(r.max_lateral_n, math.hypot(*tick.force_tissue_n[:2]))
+
+    def _lift(self, reason: str) -> None:
+        """Straight up along the normal from the setpoint: the probe leaves the tissue before it moves on."""
+        self.record.stop_reason, self._phase = reason, "retract"
+        up = (*self._xy, self.s.clearance_mm)
+        self._task = MoveTo(up, self.s.approach_speed_mm_s, self.s.accel_mm_s2, start=self._setpoint())
+
+    def _retract(self, tick, dt) -> Vec3:
+        target = self._task.step(tick)
+        self.done = self._task.done
+        return target
+
+    def _setpoint(self) -> Vec3:
+        return (self._xy[0], self._xy[1], self._z)

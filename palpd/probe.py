@@ -1,0 +1,85 @@
+"""What one palpation found: a stiffness, a bound, or a named reason why not, always where it was aimed.
+
+`judge` turns a finished palpation record into a Probe. A palpation that reached the force limit before
+it gave a stiffness is `too_stiff`, a censored reading: the stiffness is at least the force reached over the
+deepest indentation (plus two encoder steps, so the bound never overstates it); one that pressed to full
+depth with no force rising out of the noise is `too_soft`: at most that force (plus three noise sds) over
+that depth, or, when the threshold never fired all the way down yet the trace shows a rise too faint to fit,
+at most the threshold over the depth reached below the nominal surface. Neither is missing data: the learner takes them as bounds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from palpd.control.palpation import PalpationRecord
+from palpd.stiffness import FitRejected, StiffnessResult
+from palpd.stiffness.palpation import fit_palpation
+
+DEPTH_RESOLUTION_MM = 0.05  # two encoder steps at the tip (~23 µm each)
+NO_FIT = ("too_few_samples", "no_range", "no_rise", "constant_force", "not_converged")
+
+
+@dataclass
+class Probe:
+    """One palpation, where it was aimed, with its outcome (DESIGN.md `probes[].outcome`): `fit`, `no_contact`,
+    `too_stiff` (k ≥ stiffness_bound_n_per_mm: the force limit came first), `too_soft` (k ≤ the bound: the
+    press stayed within the force resolution) or `rejected` (the reason in `rejected`)."""
+
+    record: PalpationRecord
+    fit: StiffnessResult | None
+    rejected: str | None = None
+    outcome: str = "fit"
+    stiffness_bound_n_per_mm: float | None = None
+
+    @property
+    def stiffness_n_per_mm(self) -> float | None:
+        return self.fit.stiffness_n_per_mm if self.fit else None
+
+    def as_dict(self) -> dict:
+        rec = self.record
+        out = {"target_xy_mm": _mm(rec.target_xy_mm), "xy_mm": _mm(rec.xy_mm), "outcome": self.outcome,
+               "stiffness_n_per_mm": None if self.fit is None else round(self.fit.stiffness_n_per_mm, 5),
+               "max_force_n": round(rec.max_force_n, 4), "stop_reason": rec.stop_reason,
+               "contact_threshold_n": round(rec.contact_on_n, 4), "dropped_samples": rec.dropped_samples}
+        if rec.contact:
+            out["contact_xy_mm"] = _mm(rec.xy_mm)
+        if self.fit is not None:
+            out["stiffness_se_n_per_mm"] = round(self.fit.stiffness_se_n_per_mm, 6)
+            out["stiffness_model"] = self.fit.model
+            out["samples"] = self.fit.chosen.samples
+        if self.stiffness_bound_n_per_mm is not None:
+            out["stiffness_bound_n_per_mm"] = round(self.stiffness_bound_n_per_mm, 5)
+        if self.rejected is not None:
+            out["rejected"] = self.rejected
+        return out
+
+
+def _mm(xy) -> list[float]:
+    return [round(float(v), 3) for v in xy]
+
+
+def judge(record: PalpationRecord, settings) -> Probe:
+    """settings: palpd.config.Settings. The fit, or the outcome that says why there is none."""
+    if not record.contact:
+        return Probe(record, None, "no contact found within the approach", "no_contact")
+    try:
+        varying = settings.palpation.speed_profile == "varying"
+        return Probe(record, fit_palpation(record, settings.stiffness, settings.servo.rate_hz, varying))
+    except FitRejected as exc:
+        return _unfitted(record, exc)
+
+
+def _unfitted(record: PalpationRecord, exc: FitRejected) -> Probe:
+    deepest_mm = max(record.depth_mm, default=0.0)
+    if record.stop_reason == "no_contact":  # the threshold never fired all the way down, and no rise fits
+        bound = record.contact_on_n / max(-record.lowest_z_mm, DEPTH_RESOLUTION_MM)
+        return Probe(record, None, f"no force reached the contact threshold down to the margin ({exc})",
+                     "too_soft", bound)
+    if exc.reason in NO_FIT and record.stop_reason == "force":
+        bound = record.max_force_n / (deepest_mm + DEPTH_RESOLUTION_MM)
+        return Probe(record, None, f"force limit before a stiffness ({exc})", "too_stiff", bound)
+    if exc.reason in ("no_rise", "constant_force") and record.stop_reason == "depth" and deepest_mm > 0:
+        resolution_n = 3.0 * (record.noise_sd_n or 0.0)
+        bound = (max(record.max_force_n, 0.0) + resolution_n) / deepest_mm
+        return Probe(record, None, f"no force above the noise at full depth ({exc})", "too_soft", bound)
+    return Probe(record, None, str(exc), "rejected")

@@ -1,0 +1,64 @@
+"""Stiffness points along a sliding palpation: one per modulation cycle, the slope of normal force against
+indentation over that cycle (least squares), at the cycle's mean position, with its standard error.
+
+The slope needs no contact point: an offset in depth (contact found a little late, a surface that is not
+flat under the path) moves the line, not its slope. A cycle spans sliding_speed / modulation_hz of path, so
+the points are that far apart and each averages the tissue over that length.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+MIN_SAMPLES = 20
+MIN_SWING_FRACTION = 0.5  # a cycle must sweep at least this share of the commanded ±modulation
+
+
+@dataclass(frozen=True)
+class SlidingPoint:
+    xy_mm: tuple[float, float]
+    stiffness_n_per_mm: float
+    stiffness_se_n_per_mm: float
+    samples: int
+    model: str = "sliding-linear"  # a probe's fit: F = k·(d + δ) over one modulation cycle
+
+
+def stiffness_points(record, settings) -> list[SlidingPoint]:
+    """settings: palpd.config.PalpationSettings (the modulation the record was taken with)."""
+    if len(record.t_s) < MIN_SAMPLES:
+        return []
+    t = np.asarray(record.t_s)
+    cycle = np.floor((t - t[0]) * settings.modulation_hz).astype(int)
+    xy, depth, force = np.asarray(record.xy_mm), np.asarray(record.depth_mm), np.asarray(record.force_n)
+    points = []
+    for n in range(int(cycle.max()) + 1):
+        mine = cycle == n
+        point = _cycle_point(xy[mine], depth[mine], force[mine], 2.0 * settings.modulation_mm * MIN_SWING_FRACTION)
+        if point is not None:
+            points.append(point)
+    return points
+
+
+def _cycle_point(xy, depth, force, min_swing_mm: float) -> SlidingPoint | None:
+    """F = (k + k'·s)·(d + δ) to first order, s the position along the path from the cycle's mean: across an
+    edge the stiffness changes within one cycle, and a plain slope of F on d would mix that change in."""
+    if len(depth) < MIN_SAMPLES or np.ptp(depth) < min_swing_mm:
+        return None  # a cut-short last cycle: too little of the line to read a slope
+    along = _along_path(xy)
+    design = np.column_stack([depth, depth * along, along, np.ones_like(depth)])
+    coef, _, rank, _ = np.linalg.lstsq(design, force, rcond=None)
+    if rank < design.shape[1]:  # standing still: no change along the path to separate
+        design = design[:, [0, 3]]
+        coef, *_ = np.linalg.lstsq(design, force, rcond=None)
+    residual = force - design @ coef
+    covariance = np.linalg.pinv(design.T @ design) * float(residual @ residual) / (len(depth) - design.shape[1])
+    return SlidingPoint(tuple(float(v) for v in xy.mean(axis=0)), float(coef[0]),
+                        float(np.sqrt(covariance[0, 0])), len(depth))
+
+
+def _along_path(xy) -> np.ndarray:
+    centred = xy - xy.mean(axis=0)
+    direction = xy[-1] - xy[0]
+    length = float(np.hypot(*direction))
+    return centred @ (direction / length) if length > 1e-6 else np.zeros(len(xy))

@@ -1,0 +1,102 @@
+"""Each setting's median robot time and accuracy over every scene × seed, the Pareto front of robot time
+against accuracy (IoU, centre error), and the plot of both."""
+from __future__ import annotations
+
+import math
+from statistics import median
+
+KEY = ("strategy", "palpation", "setting")
+
+
+def settings_summary(rows: list[dict]) -> list[dict]:
+    """One line per setting: medians over its runs, and whether it is on each front.
+
+    A run that found no lump has no centre error: it counts as infinitely far (it did not locate it).
+    """
+    groups: dict[tuple, list[dict]] = {}
+    for row in rows:
+        groups.setdefault(tuple(row[k] for k in KEY), []).append(row)
+    summary = [{**dict(zip(KEY, key)), "runs": len(mine),
+                "palpations": median(r["palpations"] for r in mine),
+                "robot_time_s": round(median(r["robot_time_s"] for r in mine), 2),
+                "iou": round(median(r["iou"] for r in mine), 4),
+                "center_error_mm": _median_error([r for r in mine if r["lumps_true"]])}
+               for key, mine in groups.items()]
+    for line in summary:
+        line["front_iou"] = _on_front(line, summary, "iou", +1)
+        line["front_center"] = _on_front(line, summary, "center_error_mm", -1)
+    return sorted(summary, key=lambda line: line["robot_time_s"])
+
+
+def _median_error(rows: list[dict]) -> float:
+    errors = [math.inf if r["center_error_mm"] is None else r["center_error_mm"] for r in rows]
+    return round(median(errors), 3) if errors else math.nan
+
+
+def _on_front(line: dict, summary: list[dict], metric: str, sign: int) -> bool:
+    return math.isfinite(line[metric]) and not any(_dominates(o, line, metric, sign) for o in summary)
+
+
+def _dominates(a: dict, b: dict, metric: str, sign: int) -> bool:
+    """a is at least as fast and as accurate as b, and better in one (sign +1: higher is better)."""
+    if not math.isfinite(a[metric]):
+        return False
+    faster, better = a["robot_time_s"] <= b["robot_time_s"], sign * a[metric] >= sign * b[metric]
+    return faster and better and (a["robot_time_s"] < b["robot_time_s"] or sign * a[metric] > sign * b[metric])
+
+
+def per_scene_lead(rows: list[dict]) -> list[dict]:
+    """For each scene: the discrete raster's median robot time and IoU (the seed paper's way, over its counts
+    and seeds), and the best active run (discrete or sliding) within that time."""
+    out = []
+    for scene in sorted({r["scene"] for r in rows}):
+        raster = [r for r in rows if r["scene"] == scene and r["strategy"] == "raster" and r["palpation"] == "discrete"]
+        if not raster:
+            continue
+        time_s, iou = median(r["robot_time_s"] for r in raster), median(r["iou"] for r in raster)
+        active = [r["iou"] for r in rows if r["scene"] == scene and r["strategy"] == "active"
+                  and r["robot_time_s"] <= time_s]
+        best = max(active, default=None)
+        out.append({"scene": scene, "raster_median_time_s": round(time_s, 2), "raster_median_iou": round(iou, 4),
+                    "best_active_iou": best, "lead": None if best is None else round(best - iou, 4)})
+    return out
+
+
+COLOURS = {("active", "discrete"): "tab:blue", ("active", "sliding"): "tab:red",
+           ("raster", "discrete"): "tab:orange", ("raster", "sliding"): "tab:purple", ("random", "discrete"): "tab:green"}
+
+
+def plot(rows: list[dict], summary: list[dict], path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
+    for ax, metric, flag, label in ((axes[0], "iou", "front_iou", "IoU (all lumps' area, median)"),
+                                    (axes[1], "center_error_mm", "front_center", "centre error (mm, median)")):
+        _panel(ax, rows, summary, metric, flag)
+        ax.set_xlabel("robot time per scan (s)")
+        ax.set_ylabel(label)
+    axes[1].set_yscale("log")
+    axes[0].legend(fontsize=8, loc="lower right")
+    fig.suptitle(f"speed for accuracy: {len(rows)} scans, {len({r['scene'] for r in rows})} scenes; "
+                 "small dots = runs, big = setting medians, line = Pareto front")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def _panel(ax, rows, summary, metric: str, flag: str) -> None:
+    for (strategy, palpation), colour in COLOURS.items():
+        runs = [r for r in rows if (r["strategy"], r["palpation"]) == (strategy, palpation) and r[metric] is not None]
+        ax.scatter([r["robot_time_s"] for r in runs], [r[metric] for r in runs], s=6, alpha=0.25, color=colour)
+        mine = [s for s in summary if (s["strategy"], s["palpation"]) == (strategy, palpation)
+                and math.isfinite(s[metric])]
+        ax.scatter([s["robot_time_s"] for s in mine], [s[metric] for s in mine], s=40, color=colour,
+                   edgecolors="black", label=f"{strategy} {palpation}" if mine else None)
+    front = [s for s in summary if s[flag] and math.isfinite(s[metric])]
+    ax.step([s["robot_time_s"] for s in front], [s[metric] for s in front], where="post", color="black", lw=1)
+    for s in front:
+        ax.annotate(f"{s['strategy']}{' sliding' if s['palpation'] == 'sliding' else ''} {s['setting']}", (s["robot_time_s"], s[metric]), fontsize=7,
+                    xytext=(4, 4), textcoords="offset points")

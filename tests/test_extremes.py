@@ -1,0 +1,161 @@
+"""Palpation at the extremes of sensor and tissue, through the simulator: noise 0.001-0.3 N, tissue 0.005-5 N/mm,
+exponent 1-2, damping 0-0.01 N·s/mm. Each palpation gives a stiffness within its stated uncertainty, or a named
+outcome (a bound the truth satisfies), always where it was aimed."""
+import math
+import random
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, Phase, given, settings as hsettings, strategies as st
+
+from drivers.sim.scene import Scene
+from palpd.bench import open_simulated_bench
+from palpd.config import Settings
+from palpd.control.contact import contact_thresholds, measure_noise
+from palpd.control.onset import hinge
+from palpd.control.segment import Segmenter
+from palpd.control.tasks import HoldAndCollect, MoveTo
+from palpd.scan import failure_reason, palpate
+from palpd.stiffness.palpation import depth_rate_mm_s
+from palpd.probe import Probe, judge
+from palpd.control.palpation import PalpationRecord
+
+SETTINGS = Settings()
+SPEED_MM_S = SETTINGS.palpation.speed_mm_s
+
+
+def tared_bench(scene):
+    bench = open_simulated_bench(SETTINGS, scene)
+    bench.servo.start()
+    above = (0.0, 0.0, SETTINGS.palpation.clearance_mm)
+    bench.servo.run(MoveTo(above, 80.0, 2000.0))
+    tare = HoldAndCollect(SETTINGS.palpation.tare_samples, where=above)
+    bench.servo.run(tare)
+    bench.servo.forces.tare(tare.samples)
+    return bench
+
+
+def felt_n_per_mm(k, n, b, x_mm, speed_mm_s=SPEED_MM_S):
+    """dF/dx of k·xⁿ + b·xⁿ·v at an indentation speed v: what a press at that constant speed feels."""
+    return (k + b * speed_mm_s) * n * x_mm ** (n - 1.0)
+
+
+def true_reading(probe, k, n, b):
+    """The simulator's force law along the palpation's own motion (its speed sags below the commanded one as
+    the force grows), read as the chosen model reads it: a straight line's slope over the recorded depths (a
+    line fitted to a gently curved trace is its mean slope), else the tangent at the reference depth."""
+    depth = np.asarray(probe.record.depth_mm)
+    rate = depth_rate_mm_s(depth, SETTINGS.servo.rate_hz)
+    if probe.fit.model not in ("linear", "linear-offset"):
+        return felt_n_per_mm(k, n, b, probe.fit.chosen.reference_depth_mm, float(np.median(rate)))
+    x = np.maximum(depth - probe.record.contact_z_mm, 0.0)  # the true surface is at z = 0
+    return float(np.polyfit(depth, k * x**n + b * x**n * rate, 1)[0])
+
+
+def check_honest(probe, k, n, b):
+    rec = probe.record
+    assert tuple(rec.target_xy_mm) == pytest.approx(tuple(rec.xy_mm), abs=1.0)  # where it was aimed
+    assert probe.outcome in ("fit", "too_stiff", "too_soft"), (probe.outcome, probe.rejected)
+    if probe.outcome == "fit":
+        truth = true_reading(probe, k, n, b)
+        error = abs(probe.stiffness_n_per_mm - truth)
+        assert error <= 3.0 * probe.fit.stiffness_se_n_per_mm + 0.1 * truth, (probe.fit.model, probe.stiffness_n_per_mm, truth)
+    elif probe.outcome == "too_stiff":
+        assert probe.stiffness_bound_n_per_mm <= 1.1 * felt_n_per_mm(k, n, b, max(rec.depth_mm, default=0.05))
+    else:
+        assert probe.stiffness_bound_n_per_mm >= 0.9 * felt_n_per_mm(k, n, b, max(rec.depth_mm))
+
+
+# Each example is a simulated palpation (~0.5 s): a few, unshrunk (a failure prints its example as drawn).
+@hsettings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow],
+           phases=[Phase.explicit, Phase.reuse, Phase.generate])
+@given(noise_n=st.floats(0.001, 0.3), log_k=st.floats(math.log(0.005), math.log(5.0)), n=st.floats(1.0, 2.0),
+       b=st.sampled_from([0.0, 0.01]), seed=st.integers(0, 1000))
+def test_any_noise_and_tissue_palpated_through_the_simulator_gives_an_honest_reading(noise_n, log_k, n, b, seed):
+    k = math.exp(log_k)
+    scene = Scene(name="extreme", seed=seed, tissue={"stiffness_n_per_mm": k, "exponent": n, "damping_n_s_per_mm": b},
+                  sensor={"noise_n": noise_n, "tilt": True})
+    bench = tared_bench(scene)
+    check_honest(palpate(bench, SETTINGS, (3.0, -2.0)), k, n, b)
+
+
+@pytest.fixture(scope="module")
+def stiff_lump():
+    """2 N/mm tissue with a 12 N/mm lump: the force limit comes at a third of a millimetre over the lump."""
+    scene = Scene(name="stiff", tissue={"stiffness_n_per_mm": 2.0},
+                  lump=[{"center_mm": (0.0, 0.0), "radius_mm": 10.0, "stiffness_n_per_mm": 12.0}], sensor={"tilt": True})
+    bench = tared_bench(scene)
+    return [palpate(bench, SETTINGS, xy) for xy in ((0.0, 0.0), (-20.0, 20.0))]
+
+
+def test_the_stiffest_spot_is_measured_not_dropped(stiff_lump):
+    centre, background = stiff_lump
+    assert centre.record.stop_reason == "force" and centre.outcome == "fit"
+    assert centre.stiffness_n_per_mm == pytest.approx(12.0, abs=3.0 * centre.fit.stiffness_se_n_per_mm + 1.2)
+    assert background.fit.model in ("linear", "linear-offset")
+    assert background.stiffness_n_per_mm == pytest.approx(2.0, rel=0.05)
+
+
+@pytest.fixture(scope="module")
+def noisy_sensor():
+    scene = Scene(name="noisy", tissue={"stiffness_n_per_mm": 0.12}, sensor={"noise_n": 0.3, "tilt": True})
+    bench = tared_bench(scene)
+    return bench, [palpate(bench, SETTINGS, xy) for xy in ((5.0, -5.0), (-10.0, 10.0), (15.0, 3.0))]
+
+
+def test_contact_thresholds_rise_with_the_measured_noise_and_the_contact_point_is_found_again(noisy_sensor):
+    bench, probes = noisy_sensor
+    noise = bench.servo.forces.noise
+    assert noise.sd_n == pytest.approx(0.3, rel=0.15)
+    assert probes[0].record.contact_on_n > 0.2  # far above the 0.03 N floor: the noise cannot reach it
+    for probe in probes:
+        assert probe.outcome == "fit" and abs(probe.record.contact_z_mm) < 1.0  # the surface is at z = 0
+        assert probe.stiffness_n_per_mm == pytest.approx(0.12, abs=3.0 * probe.fit.stiffness_se_n_per_mm + 0.006)
+
+
+def test_a_palpation_that_finds_nothing_is_reported_where_it_was_aimed():
+    probe = judge(PalpationRecord((12.0, -7.0), stop_reason="no_contact"), SETTINGS)
+    assert probe.outcome == "no_contact" and probe.fit is None and probe.stiffness_bound_n_per_mm is None
+    report = probe.as_dict()
+    assert report["xy_mm"] == report["target_xy_mm"] == [12.0, -7.0] and "contact_xy_mm" not in report
+
+
+def test_hinge_finds_the_onset_under_noise_a_threshold_fires_millimetres_late():
+    rng = np.random.default_rng(0)
+    z = np.linspace(3.0, -4.0, 1400)  # tip height, mm: the surface at 0
+    force = 0.12 * np.maximum(-z, 0.0) + rng.normal(0.0, 0.3, z.size)
+    onset, zero = hinge(z, force, fallback=1100)
+    assert abs(z[onset]) < 0.4 and abs(zero) < 0.05
+    assert hinge(z, rng.normal(0.0, 0.3, z.size), fallback=1100)[0] is None  # flat: no contact at all
+
+
+def test_noise_is_measured_about_the_drift_and_scales_the_thresholds_above_the_floors():
+    rng = random.Random(1)
+
+    class Sample:
+        def __init__(self, t, sd):
+            self.t_s, self.force_n = t, (rng.gauss(0, sd), rng.gauss(0, sd), 0.5 * t + rng.gauss(0, sd))
+
+    quiet = measure_noise([Sample(i * 0.001, 0.001) for i in range(200)])
+    loud = measure_noise([Sample(i * 0.001, 0.3) for i in range(200)])
+    assert quiet.sd_n == pytest.approx(0.001, rel=0.2) and quiet.drift_n_per_s == pytest.approx(0.5, rel=0.1)
+    p = SETTINGS.palpation
+    assert contact_thresholds(p, quiet, 1000.0).on_n == p.contact_on_n  # the floor
+    high = contact_thresholds(p, loud, 1000.0)
+    assert high.on_n > 10 * p.contact_on_n and high.off_n < high.on_n
+
+
+def test_nan_samples_are_dropped_and_counted():
+    segmenter = Segmenter(0.06, 0.03)
+    for i in range(100):
+        segmenter.push(i * 0.001, (0.0, 0.0, 1.0), math.nan if i % 10 == 0 else 0.0)
+    assert segmenter.dropped == 10
+
+
+def test_palpations_that_keep_failing_are_undetermined_with_the_reason():
+    def probe(outcome, bound=None):
+        return Probe(PalpationRecord((0.0, 0.0)), None, "x", outcome, bound)
+
+    assert failure_reason([probe("no_contact")] * 38 + [probe("rejected")] * 2) == (
+        "38 of 40 palpations found no contact: check the tissue placement (tissue.origin_mm) and the force sensor")
+    assert failure_reason([probe("too_stiff", 20.0)] * 5) is None  # censored readings are evidence

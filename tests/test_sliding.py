@@ -1,0 +1,85 @@
+"""Sliding palpation on the simulated bench: the stiffness read while sliding agrees with a discrete
+palpation at the same spot, the tissue drags the sliding tip (Coulomb friction), and a lateral-force stop
+lifts the probe off without sliding on."""
+import math
+
+import pytest
+from hypothesis import given, strategies as st
+
+from conftest import SCENES
+from drivers.sim.scene import Scene, load_scene
+from drivers.sim.tissue import SLIP_MM_S, sliding_friction_n
+from palpd.bench import open_simulated_bench
+from palpd.config import Settings
+from palpd.control.sliding import SlidingPalpation
+from palpd.control.tasks import HoldAndCollect, MoveTo
+from palpd.errors import ScanFault
+from palpd.scan import palpate
+from palpd.slide import slide
+from palpd.stiffness.sliding import stiffness_points
+from test_faults import Watch
+
+FRICTION = 0.3  # a wet tissue under a smooth probe
+AGREEMENT = 0.03  # sliding vs discrete stiffness at the same spot, away from an edge (default sliding settings)
+
+
+@pytest.fixture(scope="module")
+def paper_bench():
+    settings, paper = Settings(), load_scene(SCENES / "paper.toml")
+    scene = paper.model_copy(update={"tissue": paper.tissue.model_copy(update={"friction": FRICTION})})
+    bench = open_simulated_bench(settings, scene, seed=0)
+    p = settings.palpation
+    bench.servo.start()
+    start = (-25.0, -4.0, p.clearance_mm)
+    bench.servo.run(MoveTo(start, p.travel_speed_mm_s, p.accel_mm_s2))
+    tare = HoldAndCollect(p.tare_samples, where=start)
+    bench.servo.run(tare)
+    bench.servo.forces.tare(tare.samples)
+    return settings, bench
+
+
+def test_sliding_reads_what_a_discrete_palpation_reads_at_the_same_spot(paper_bench):
+    settings, bench = paper_bench
+    probes = slide(bench, settings, ((-25.0, -4.0), (12.0, -4.0)))  # background, the lump's edge, its top
+    assert len(probes) >= 10 and all(p.outcome == "fit" for p in probes)
+    assert probes[0].record.stop_reason == "path_end"
+    for x_mm in (-20.0, 7.5):  # the background and the lump's flat top, 7 mm from its 50 % edge
+        near = min(probes, key=lambda p: abs(p.record.xy_mm[0] - x_mm))
+        pressed = palpate(bench, settings, near.record.xy_mm)
+        assert near.stiffness_n_per_mm == pytest.approx(pressed.stiffness_n_per_mm, rel=AGREEMENT)
+        assert 0 < near.fit.stiffness_se_n_per_mm < 0.05 * near.stiffness_n_per_mm
+    readings = [p.stiffness_n_per_mm for p in probes]
+    assert max(readings) > 5 * min(readings)  # the edge crossed within the path is in the stream
+
+
+def test_the_tissue_drags_the_sliding_tip_and_the_drag_is_measured(paper_bench):
+    settings, bench = paper_bench
+    task = SlidingPalpation((-25.0, 20.0), (-5.0, 20.0), settings.palpation)  # background: ~0.3 N pressed
+    bench.servo.run(task)
+    normal = sum(task.record.force_n) / len(task.record.force_n)
+    friction = FRICTION
+    assert friction * normal * 0.5 < task.record.max_lateral_n < friction * task.record.max_force_n * 1.5 + 0.05
+    assert len(stiffness_points(task.record, settings.palpation)) >= 5
+
+
+@given(st.floats(0.0, 10.0), st.floats(0.0, 2.0), st.floats(-100, 100), st.floats(-100, 100))
+def test_friction_opposes_the_motion_and_never_exceeds_coulomb(normal_n, mu, vx, vy):
+    fx, fy = sliding_friction_n(normal_n, mu, vx, vy)
+    assert math.hypot(fx, fy) <= mu * normal_n + 1e-9
+    assert fx * vx + fy * vy <= 1e-12  # never pushes the tip along
+    if math.hypot(vx, vy) > 10 * SLIP_MM_S:
+        assert math.hypot(fx, fy) >= 0.99 * mu * normal_n - 1e-12  # (a subnormal μ underflows to none)
+
+
+def test_a_lateral_force_stop_lifts_the_probe_off_without_sliding_on():
+    settings = Settings().updated(safety={"max_lateral_force_n": 0.4})  # a limit tighter than the default
+    bench = open_simulated_bench(settings, Scene(name="stiff", tissue={"stiffness_n_per_mm": 0.8, "friction": 0.3}))
+    bench.servo.start()  # a stiff tissue: ~2 N pressed, ~0.6 N of drag at μ = 0.3
+    watch = Watch(bench)
+    with pytest.raises(ScanFault):
+        bench.servo.run(SlidingPalpation((0.0, 0.0), (20.0, 0.0), settings.palpation))
+    fault = bench.servo.fault
+    assert fault.code == "lateral_force" and fault.category == 1
+    watch.no_press_nor_slide_after_the_fault()
+    assert bench.world.contact_force_n == 0.0 and bench.world.tip_mm()[2] > 0.0
+    assert bench.world.amplifiers_on is False
