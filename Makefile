@@ -18,9 +18,9 @@ run: $(BIN)/palpd
 		--report $(OUT)/paper-report.json --plot $(OUT)/paper-map.png
 
 # Two workers: the suite's scans, daemons and subprocesses spend most of their time in one Python each;
-# module fixtures stay on one worker (loadscope).
+# each module stays on one worker, and the wall-clock modules share one (tests/conftest.py).
 test: $(BIN)/palpd
-	$(BIN)/python -m pytest -n 2 --dist loadscope
+	$(BIN)/python -m pytest -n 2 --dist loadgroup
 
 reproduce: $(BIN)/palpd
 	$(BIN)/python scripts/reproduce.py

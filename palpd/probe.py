@@ -46,7 +46,7 @@ class Probe:
         if self.fit is not None:
             out["stiffness_se_n_per_mm"] = round(self.fit.stiffness_se_n_per_mm, 6)
             out["stiffness_model"] = self.fit.model
-            out["samples"] = self.fit.chosen.samples
+            out["samples"] = self.fit.samples  # a StiffnessResult or a sliding point
         if self.stiffness_bound_n_per_mm is not None:
             out["stiffness_bound_n_per_mm"] = round(self.stiffness_bound_n_per_mm, 5)
         if self.rejected is not None:

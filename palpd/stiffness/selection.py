@@ -43,6 +43,10 @@ class StiffnessResult:
     def model(self) -> str:
         return self.chosen.model
 
+    @property
+    def samples(self) -> int:
+        return self.chosen.samples
+
 
 def information_criterion(fit: ModelFit, parameters: int, criterion: str) -> float:
     return _criterion(fit.rss_scaled, fit.samples, parameters, criterion)
