@@ -21,7 +21,7 @@ from palpd.learner.observations import EXACT, Observations
 from palpd.learner.threshold import free_form_levels, lump_points, supervised_levels, tau_field
 
 COVERAGE_STEP_MM = 2.0  # how finely the unexplored spots are looked for
-REFIT_FLOPS = 5.5e7  # a one-block refit costs n²·G; beyond this (60 readings on 121²) the kernel is kept: no spikes
+REFIT_FLOPS = 2.5e7  # a one-block refit costs n²·G (~25 ms here at this); beyond (41 readings on 121²) the kernel is kept
 HYPER_POINTS = 60  # the kernel is learned from at most this many readings, evenly spread over the arrival order
 CENSORED_SD = 0.25  # log sd the free-form map gives a bound, read as a reading at the bound
 FULL_UPDATE_POINTS = 60  # every hypothesis refitted every update up to this many readings
@@ -32,6 +32,8 @@ REFITS_PER_DOUBLING = 30  # ...and there are this many refits while the readings
 class Learner(Decision):
     def __init__(self, size_mm: tuple[float, float], settings, min_contrast: float = 0.3, seed: int = 0,
                  travel_mm_per_palpation: float = 100.0, supervised_tau_n_per_mm: float | None = None) -> None:
+        from sklearn import gaussian_process  # noqa: F401  (the kernel fit's: loaded now, not at the first refit mid-scan)
+
         self.settings = settings
         self.size_mm = (float(size_mm[0]), float(size_mm[1]))
         self.supervised_tau_n_per_mm = supervised_tau_n_per_mm  # None: τ from the data (unsupervised)
