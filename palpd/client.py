@@ -186,7 +186,7 @@ class Client:
         every second, so a status subscriber always hears from a live daemon.
         """
         with self._subscription(*topics) as socket:
-            while socket.poll(None if timeout_s is None else int(timeout_s * 1000)):
+            while _poll_in_slices(socket, timeout_s):
                 topic, payload = socket.recv_multipart()[:2]
                 model = EVENT_MODELS.get(topic.decode(errors="replace"))
                 if model is None:
@@ -195,3 +195,18 @@ class Client:
                     yield model.model_validate_json(payload)
                 except ValidationError:
                     continue  # a newer daemon's field this client does not know: skip, do not die
+
+
+POLL_SLICE_S = 0.25
+
+
+def _poll_in_slices(socket: zmq.Socket, timeout_s: float | None) -> bool:
+    """socket.poll(timeout) in short slices, so a waiting client hears Ctrl-C or SIGINT within a slice whatever
+    the poll does with the interrupted call; True when a message is there, False at the timeout."""
+    give_up = None if timeout_s is None else time.monotonic() + timeout_s
+    while True:
+        left_s = POLL_SLICE_S if give_up is None else min(POLL_SLICE_S, give_up - time.monotonic())
+        if left_s <= 0:
+            return False
+        if socket.poll(max(1, int(left_s * 1000))):
+            return True

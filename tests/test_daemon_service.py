@@ -138,7 +138,7 @@ def test_palpctl_watch_probe_bias_estop_reset_and_a_probe_survives_kill_9(daemon
         palpctl("reset")  # the arm is brought home, supervised, then the daemon is ready again
         daemon.wait_for(lambda s: s["state"] == "ready", what="ready after reset")
         watch.send_signal(signal.SIGINT)
-        assert watch.wait(10) == 0
+        assert watch.wait(30) == 0, watch.stderr.read()
     finally:
         watch.kill()
         watch.wait(10)
