@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
 
 from palpd import __version__
@@ -104,13 +105,20 @@ def watch(client) -> int:
     status = client.status()  # a late joiner: the state now, then every change
     print(f"status: {status.state}, {status.palpations} palpations", flush=True)
     last_status = [status.state, status.message]
+    # Ctrl-C as a flag, not a KeyboardInterrupt: one raised while a finaliser runs is swallowed ("Exception
+    # ignored in ..."), and watch would go on; the flag is seen after the next event or poll slice.
+    stopping: list[bool] = []
+    previous = signal.signal(signal.SIGINT, lambda *_: stopping.append(True))
     try:
-        for event in client.events():
-            line = watch_line(event, last_status)
-            if line:
-                print(line, flush=True)
-    except KeyboardInterrupt:
-        return 0
+        while not stopping:
+            for event in client.events(timeout_s=0.5):
+                line = watch_line(event, last_status)
+                if line:
+                    print(line, flush=True)
+                if stopping:
+                    break
+    finally:
+        signal.signal(signal.SIGINT, previous)
     return 0
 
 
