@@ -20,7 +20,7 @@ run: $(BIN)/palpd
 # Two workers: the suite's scans, daemons and subprocesses spend most of their time in one Python each;
 # each module stays on one worker, and the wall-clock modules share one (tests/conftest.py).
 test: $(BIN)/palpd
-	$(BIN)/python -m pytest -n 2 --dist loadgroup
+	$(BIN)/python -m pytest -n 2
 
 reproduce: $(BIN)/palpd
 	$(BIN)/python scripts/reproduce.py

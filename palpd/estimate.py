@@ -9,12 +9,14 @@ threshold a linear SVM finds between its points and the rest.
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
 
-CONTRAST_P_VALUE = 1e-3
+# Stiff readings the tissue's own scatter would give this often per scan are not taken for a lump
+# (the paper's method here, and the learner's lump evidence).
+FALSE_LUMP_RATE = 1e-3
 BOUNDARY_VERTICES = 48
 
 
@@ -123,15 +125,18 @@ def _best_two_group_split(sorted_k: np.ndarray) -> int:
 
 
 def _groups_differ(low: np.ndarray, high: np.ndarray) -> bool:
-    from scipy import stats  # here: scipy.stats costs every process that imports palpd.estimate half a second
-    if high.size >= 2 and low.size >= 2:
-        if np.ptp(low) == 0 and np.ptp(high) == 0:
-            return bool(high[0] != low[0])
-        with warnings.catch_warnings():  # near-identical groups: scipy warns, the p-value is still right
-            warnings.simplefilter("ignore", RuntimeWarning)
-            return bool(stats.ttest_ind(high, low, equal_var=False).pvalue < CONTRAST_P_VALUE)
-    spread = low.std(ddof=1) if low.size >= 2 else 0.0
-    return bool(high.min() - low.mean() > 6.0 * spread) if spread > 0 else False
+    """Whether every stiff point is one the tissue's own scatter could not give: above the soft group's
+    level by more than z robust sds, with z set by the learner's false-lump rate over all the points.
+    (A test of the two means asked the wrong question: four probes on a 6x lump among 45 on tissue
+    failed it, p = 0.002 with three degrees of freedom, and a raster scan reported no lump.)"""
+    level = float(np.median(low))
+    spread = 1.4826 * float(np.median(np.abs(low - level)))  # boundary values in the soft group leave it be
+    if spread == 0.0 and low.size >= 2:
+        spread = float(low.std(ddof=1))
+    if spread == 0.0:  # noise-free tissue: any stiffer point passed the contrast check already
+        return bool(high.min() > level)
+    z = NormalDist().inv_cdf(1.0 - FALSE_LUMP_RATE / (low.size + high.size))
+    return bool(high.min() - level > z * spread)
 
 
 def _typical_spacing(xy: np.ndarray) -> float:

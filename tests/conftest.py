@@ -36,11 +36,37 @@ def assert_one_line_error(result: subprocess.CompletedProcess, *fragments: str) 
 # loops never compete for the two cores while the other worker keeps the CPU-bound (virtual-time) tests going.
 WALL_CLOCK_MODULES = {"test_simulate", "test_serve_remote", "test_servo_process", "test_bench_servo", "test_bridge",
                       "test_netft", "test_usb"}
+WALL_CLOCK_GROUP = "wall_clock"
+
+# The longest units of work, longest first (measured with `pytest --durations=0`). xdist hands out units in
+# collection order, so these start at once and the many short modules fill in around them; a long unit
+# started last would leave one core idle at the end of the run.
+LONGEST_FIRST = (WALL_CLOCK_GROUP, "test_active_scan", "test_daemon", "test_service_api", "test_daemon_service",
+                 "test_scan", "test_daemon_learner", "test_study", "test_tradeoff")
+
+
+def _work_unit(nodeid: str) -> str:
+    """The module a test belongs to, or the wall-clock group."""
+    module = Path(nodeid.split("::", 1)[0]).stem
+    return WALL_CLOCK_GROUP if module in WALL_CLOCK_MODULES else module
 
 
 def pytest_collection_modifyitems(items):
-    """xdist groups (`--dist loadgroup`): the wall-clock modules in one group, every other module in its own,
-    so a module's fixtures are set up once, on one worker."""
-    for item in items:
-        module = item.path.stem
-        item.add_marker(pytest.mark.xdist_group("wall_clock" if module in WALL_CLOCK_MODULES else module))
+    """Order the collection so the longest units of work are handed out first (a stable sort: within a
+    module, tests keep their order)."""
+    rank = {unit: i for i, unit in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(_work_unit(item.nodeid), len(rank)))
+
+
+def pytest_xdist_make_scheduler(config, log):
+    """Each module is one unit of work, on one worker, so its module fixtures are set up once; the wall-clock
+    modules together are one unit. (xdist's own `loadgroup` cannot be used: it renames node ids, which pytest
+    9.2 no longer allows, and silently schedules every test on its own.)"""
+    from xdist.scheduler import LoadScopeScheduling
+
+    class ModuleScheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            return _work_unit(nodeid)
+
+    config.option.loadscopereorder = False  # keep the order above, not xdist's "most tests first"
+    return ModuleScheduling(config, log)

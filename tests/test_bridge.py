@@ -38,12 +38,14 @@ def served(request):
 
 def test_currents_reach_the_simulated_motors_and_encoders_come_back(served):
     host, endpoint = served
-    with open_bridge_robot(endpoint.url, timeout_s=TIMEOUT_S) as robot:
+    # The hold comes after 0.5 s of silence, not the default 1.5 ms: a test process preempted between the
+    # command and its check (a busy machine) would otherwise see the hold instead of the command.
+    with open_bridge_robot(endpoint.url, timeout_s=TIMEOUT_S, hold_after_s=0.5) as robot:
         robot.enable()
         robot.write((0.0, 0.4, 0.0), (0.0, 0.45, 0.0))
         robot.read()  # the command's reply: the state as the bridge applied it
         assert host.world.currents_a == pytest.approx((0.0, 0.4, 0.0))
-        time.sleep(0.05)  # a silent host: the bridge ramps to the hold the command carried
+        time.sleep(0.6)  # a silent host: the bridge ramps to the hold the command carried
         state = robot.read()
         assert state.status & STATUS_AMPLIFIERS_ON and state.status & STATUS_HOLDING
         assert host.world.currents_a == pytest.approx((0.0, 0.45, 0.0))

@@ -16,8 +16,9 @@ an earlier probe are never chosen again.
 """
 from __future__ import annotations
 
+from statistics import NormalDist
+
 import numpy as np
-from scipy.special import ndtri
 
 from palpd.learner import shapes
 from palpd.learner.describe import quantities
@@ -74,7 +75,7 @@ def disagreement(predictions: list[tuple[float, np.ndarray, np.ndarray]], noise_
 
 
 def straddle(mean: np.ndarray, std: np.ndarray, tau: np.ndarray, confidence: float) -> np.ndarray:
-    return float(ndtri(confidence)) * std - np.abs(mean - tau)
+    return NormalDist().inv_cdf(confidence) * std - np.abs(mean - tau)
 
 
 def best_candidate(score: np.ndarray, cells_xy: np.ndarray, blocked: np.ndarray, here_mm,

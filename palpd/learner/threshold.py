@@ -16,12 +16,12 @@ than its own noise could explain (a false-lump rate of FALSE_LUMP_RATE per scan)
 from __future__ import annotations
 
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
 from scipy import ndimage
-from scipy.special import ndtri
 
-FALSE_LUMP_RATE = 1e-3
+from palpd.estimate import FALSE_LUMP_RATE
 
 EIGHT_CONNECTED = np.ones((3, 3), dtype=bool)
 
@@ -51,7 +51,7 @@ def lump_points(k: np.ndarray, sd: np.ndarray, lv: Levels) -> np.ndarray:
 
 
 def surely_above(k: np.ndarray, sd: np.ndarray, tau_n_per_mm: float) -> np.ndarray:
-    z = float(ndtri(1.0 - FALSE_LUMP_RATE / max(np.size(k), 1)))
+    z = NormalDist().inv_cdf(1.0 - FALSE_LUMP_RATE / max(np.size(k), 1))
     return np.asarray(k) - z * np.asarray(sd) > tau_n_per_mm
 
 

@@ -12,7 +12,6 @@ the training lump's boundary stiffness, close to its half-height.
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import brentq
 
 from palpd.datafile import read_dataset
 from palpd.errors import ConfigError
@@ -41,4 +40,6 @@ def tau_between(classifier, k: np.ndarray) -> float:
     low, high = float(k.min()), float(k.max())
     if decision(low) >= 0.0 or decision(high) <= 0.0:  # the classes overlap so much it never turns inside
         raise ConfigError("learner.training_set: stiffness does not separate tumor from tissue")
+    from scipy.optimize import brentq  # here: only a supervised τ needs it, and it is slow to import
+
     return float(brentq(decision, low, high, xtol=1e-9))

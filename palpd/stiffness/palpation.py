@@ -9,7 +9,6 @@ encoder steps (~23 µm) make sample-to-sample differences useless.
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from palpd.stiffness.selection import SELECT, StiffnessResult, fit_stiffness
 from palpd.stiffness.models import MODELS
@@ -40,4 +39,6 @@ def depth_rate_mm_s(depth_mm, rate_hz: float) -> np.ndarray:
     window = min(int(RATE_WINDOW_S * rate_hz) | 1, d.size if d.size % 2 else d.size - 1)
     if window < 5 or not np.all(np.isfinite(d)):
         return np.zeros_like(d)
+    from scipy.signal import savgol_filter  # here: scipy.signal brings scipy.stats, ~0.4 s of start-up
+
     return savgol_filter(d, window, 2, deriv=1, delta=1.0 / rate_hz)
