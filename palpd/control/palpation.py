@@ -62,12 +62,14 @@ class PalpationRecord:
 
 
 def palpation_segmenter(on_n: float, off_n: float, filter_s: float) -> Segmenter:
-    """The segmenter of one autonomous palpation. Its zero is followed from the first sample (the sensor
-    may have drifted since the tare); contact is looked for from the approach on (arm it then), not while
-    travelling; no least press or depth: a
-    palpation that hits the force limit early is the stiffest evidence there is."""
+    """The segmenter of one autonomous palpation. Its zero is followed from the first sample while travelling
+    (the sensor may have drifted since the tare) and read afresh when it is armed for the approach, then held:
+    an approach lasts a second or two, and a zero still following there takes a slow rise for drift (0.005 N/mm
+    pressed at 10 mm/s rises 0.05 N/s, which a 0.5 s follower lags by only 0.025 N: below a 0.03 N threshold,
+    so contact never fired). No least press or depth: a palpation that hits the force limit early is the
+    stiffest evidence there is."""
     segmenter = Segmenter(on_n, off_n, min_peak_n=0.0, min_depth_mm=0.0, filter_s=filter_s, lookback_s=LOOKBACK_S,
-                          baseline_n=None)
+                          baseline_n=None, baseline_time_s=math.inf)
     segmenter.armed = False
     return segmenter
 

@@ -141,7 +141,7 @@ class Segmenter:
             self.baseline_n = force_n
             return
         # Disarmed (travelling to the point), the zero follows faster: it starts from one noisy sample and
-        # may be drifting; armed, it follows slowly, so a slow press is not taken for drift.
+        # may be drifting; armed, it follows slowly (baseline_time_s; inf: held), so a slow press is not taken for drift.
         time_s = self.baseline_time_s if self._armed else min(self.baseline_time_s, SETTLE_TIME_S)
         self.baseline_n += (force_n - self.baseline_n) * (1.0 - math.exp(-dt / time_s))
 
