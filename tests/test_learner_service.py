@@ -11,7 +11,7 @@ import zmq
 from daemon_client import free_loopback_ports
 
 from conftest import ROOT
-from palpd.bus.messages import Estimate, Stiffness
+from palpd.bus.messages import Estimate, Palpation, Stiffness
 
 TIMEOUT_MS = 10_000
 
@@ -32,7 +32,26 @@ def k_paper(xy):
     return 0.12 + 0.68 / (1.0 + (math.hypot(xy[0] - 7.5, xy[1] + 4.0) / 10.0) ** 10)
 
 
-def test_learner_process_turns_stiffness_into_estimates_with_next_probe(ctx, tmp_path):
+def send(bus, topic, msg):
+    bus.send_multipart([topic, msg.model_dump_json().encode()])
+
+
+def palpate(bus, i, xy):
+    """What the daemon publishes for one palpation of the paper scene: over the lump (k ≥ 0.5 N/mm) the force
+    limit comes first, a censored reading (k ≥ its bound) with no stiffness event; elsewhere a fit."""
+    k = k_paper(xy)
+    if k >= 0.5:
+        send(bus, b"palpation", Palpation(seq=i, t=float(i), index=i, xy_mm=xy, target_xy_mm=xy, depth_mm=[],
+                                          force_n=[], outcome="too_stiff", stiffness_bound_n_per_mm=0.5,
+                                          rejected="force limit before a stiffness"))
+        return
+    send(bus, b"palpation", Palpation(seq=i, t=float(i), index=i, xy_mm=xy, target_xy_mm=xy, depth_mm=[0.0, 1.0],
+                                      force_n=[0.0, k], outcome="fit"))  # its stiffness follows: no estimate yet
+    send(bus, b"stiffness", Stiffness(seq=i, t=float(i), index=i, xy_mm=xy, stiffness_n_per_mm=k,
+                                      stiffness_sd_n_per_mm=0.001))
+
+
+def test_learner_process_turns_palpations_into_estimates_with_next_probe(ctx, tmp_path):
     bus = ctx.socket(zmq.XPUB)
     bus.setsockopt(zmq.LINGER, 0)
     events_port = bus.bind_to_random_port("tcp://127.0.0.1")
@@ -43,7 +62,7 @@ def test_learner_process_turns_stiffness_into_estimates_with_next_probe(ctx, tmp
     proc = subprocess.Popen([sys.executable, "-m", "palpd", "learner", "--config", str(cfg)], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        assert receive(bus)[0] == b"\x01stiffness"  # the learner subscribed to stiffness only
+        assert {receive(bus)[0] for _ in range(2)} == {b"\x01stiffness", b"\x01palpation"}
         estimates = ctx.socket(zmq.SUB)
         estimates.setsockopt(zmq.LINGER, 0)
         estimates.setsockopt(zmq.SUBSCRIBE, b"estimate")
@@ -52,17 +71,17 @@ def test_learner_process_turns_stiffness_into_estimates_with_next_probe(ctx, tmp
         first = Estimate.model_validate_json(body)
         assert topic == b"estimate" and first.points == 0 and first.next_probe_mm is not None
         bus.send_multipart([b"stiffness", b'{"not": "a stiffness message"}'])  # refused, not fatal
-        xy, latest = first.next_probe_mm, first
+        xy, latest, bounds = first.next_probe_mm, first, 0
         for i in range(1, 31):
-            msg = Stiffness(seq=i, t=float(i), index=i, xy_mm=xy, stiffness_n_per_mm=k_paper(xy),
-                            stiffness_sd_n_per_mm=0.001)
-            bus.send_multipart([b"stiffness", msg.model_dump_json().encode()])
+            palpate(bus, i, xy)
+            bounds += k_paper(xy) >= 0.5
             latest = Estimate.model_validate_json(receive(estimates)[1])
             assert latest.points == i and latest.seq > first.seq and latest.t == float(i)
             if latest.next_probe_mm is None:
                 break
             xy = latest.next_probe_mm
-        assert len(latest.lumps) == 1
+        assert bounds >= 1 and not estimates.poll(200)  # one estimate per palpation, fit or bound
+        assert len(latest.lumps) == 1  # the lump's only evidence that it is stiff: the bounds
         assert math.dist(latest.lumps[0].center_mm, (7.5, -4.0)) < 3.0
         assert latest.ambiguous_area_mm2 is not None
         assert latest.model.chosen == "circles:1" and latest.model.weight >= 0.9

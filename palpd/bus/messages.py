@@ -31,6 +31,7 @@ class Event(BaseModel):
 
 
 State = Literal["configure", "ready", "scanning", "fault", "stopped"]
+Outcome = Literal["fit", "no_contact", "too_stiff", "too_soft", "rejected"]  # DESIGN.md probes[].outcome
 
 
 class Status(Event):
@@ -68,6 +69,11 @@ class Palpation(Event):
     """Where the probe was aimed (a failed palpation is reported there)."""
     rejected: Optional[str] = None
     """Why no stiffness was fitted (null: a `stiffness` event follows)."""
+    outcome: Optional[Outcome] = None
+    """What the palpation gave: `fit` (a `stiffness` event follows), `no_contact`, `too_stiff`, `too_soft` or
+    `rejected` (null from a daemon older than the field)."""
+    stiffness_bound_n_per_mm: Optional[float] = None
+    """A censored reading's bound: `too_stiff`, k is at least this; `too_soft`, at most (null otherwise)."""
 
 
 class Stiffness(Event):

@@ -58,7 +58,8 @@ def journal_entry(index: int, probe, t_s: float) -> dict:
 def publish_entry(worker, entry: dict) -> None:
     """The palpation and (when the fit held) its stiffness on the bus."""
     worker.event("palpation", index=entry["index"], xy_mm=entry["xy_mm"], depth_mm=entry["depth_mm"],
-                 force_n=entry["force_n"], target_xy_mm=entry["target_xy_mm"], rejected=entry["rejected"])
+                 force_n=entry["force_n"], target_xy_mm=entry["target_xy_mm"], rejected=entry["rejected"],
+                 outcome=entry["outcome"], stiffness_bound_n_per_mm=entry["stiffness_bound_n_per_mm"])
     if entry["stiffness_n_per_mm"] is not None:
         worker.event("stiffness", index=entry["index"], xy_mm=entry["xy_mm"],
                      stiffness_n_per_mm=entry["stiffness_n_per_mm"],

@@ -1,4 +1,9 @@
-"""The learner as its own process: SUB `stiffness` from the daemon's bus, PUB `estimate` (with the next probe).
+"""The learner as its own process: SUB `palpation` and `stiffness` from the daemon's bus, PUB `estimate` (with the
+next probe).
+
+It learns what the daemon's own learner does: each `stiffness` as a reading, and each `palpation` that gave
+none by its outcome (a censored one as its bound, a failed one where it was aimed, so it is not asked for again).
+A `palpation` whose outcome is `fit` waits for its `stiffness` event, which follows it.
 
 The estimate socket is an XPUB so a subscriber that joins late gets the latest
 estimate at once instead of waiting for the next stiffness point.
@@ -12,10 +17,11 @@ import zmq
 from pydantic import ValidationError
 
 from drivers.errors import describe_validation_error
-from palpd.bus.messages import Estimate, LumpMsg, Stiffness
+from palpd.bus.messages import Estimate, LumpMsg, Palpation, Stiffness
 from palpd.learner.planner import make_learner
 
 POLL_MS = 200
+HEARD = {b"stiffness": Stiffness, b"palpation": Palpation}
 
 
 class LearnerService:
@@ -26,7 +32,8 @@ class LearnerService:
         self.context = context or zmq.Context.instance()
         self.sub = self.context.socket(zmq.SUB)
         self.sub.setsockopt(zmq.LINGER, 0)
-        self.sub.setsockopt(zmq.SUBSCRIBE, b"stiffness")
+        for topic in HEARD:
+            self.sub.setsockopt(zmq.SUBSCRIBE, topic)
         self.pub = self.context.socket(zmq.XPUB)
         self.pub.setsockopt(zmq.LINGER, 0)
         if security is not None:
@@ -47,7 +54,7 @@ class LearnerService:
                 if sock is self.pub:
                     self._on_subscription(self.pub.recv())
                 else:
-                    self._on_stiffness(self.sub.recv_multipart())
+                    self._on_event(self.sub.recv_multipart())
 
     def close(self) -> None:
         self.sub.close()
@@ -57,15 +64,29 @@ class LearnerService:
         if frame[:1] == b"\x01":  # a new subscriber: give it the latest estimate now
             self._publish(self.latest)
 
-    def _on_stiffness(self, frames: list[bytes]) -> None:
+    def _on_event(self, frames: list[bytes]) -> None:
+        topic = frames[0].decode(errors="replace")
         try:
-            msg = Stiffness.model_validate_json(frames[-1])
+            msg = HEARD.get(frames[0], Stiffness).model_validate_json(frames[-1])
         except ValidationError as exc:
-            print(f"palpd learner: {describe_validation_error('stiffness message', exc)}", flush=True)
+            print(f"palpd learner: {describe_validation_error(topic + ' message', exc)}", flush=True)
             return
-        self.learner.observe(msg.xy_mm, msg.stiffness_n_per_mm, msg.stiffness_sd_n_per_mm)
+        if isinstance(msg, Stiffness):
+            self.learner.observe(msg.xy_mm, msg.stiffness_n_per_mm, msg.stiffness_sd_n_per_mm)
+        elif not self._observe_unfitted(msg):
+            return
         self.latest = self._estimate(msg.t)
         self._publish(self.latest)
+
+    def _observe_unfitted(self, msg: Palpation) -> bool:
+        """A palpation that gave no stiffness, observed where it was aimed with its outcome (and bound); False
+        for one whose `stiffness` event follows (from a daemon older than `outcome`: one with no reason given)."""
+        outcome = msg.outcome or ("rejected" if msg.rejected else "fit")
+        if outcome == "fit":
+            return False
+        self.learner.observe(msg.target_xy_mm or msg.xy_mm, None, outcome=outcome,
+                             bound_n_per_mm=msg.stiffness_bound_n_per_mm)
+        return True
 
     def _estimate(self, t: float | None = None) -> Estimate:
         nxt = self.learner.next_probe()
