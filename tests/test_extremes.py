@@ -96,6 +96,16 @@ def test_the_stiffest_spot_is_measured_not_dropped(stiff_lump):
     assert background.stiffness_n_per_mm == pytest.approx(2.0, rel=0.05)
 
 
+def test_tissue_too_soft_to_outrun_a_drift_follower_still_fires_contact():
+    """0.005 N/mm pressed at 10 mm/s rises 0.05 N/s: a zero that followed it during the approach lagged by less
+    than the 0.03 N threshold, contact never fired, and the too_soft bound (k <= 0.0021) was below the truth."""
+    scene = Scene(name="soft", seed=5, tissue={"stiffness_n_per_mm": 0.005}, sensor={"noise_n": 0.01, "tilt": True})
+    probe = palpate(tared_bench(scene), SETTINGS, (28.4, 26.6))
+    assert probe.record.stop_reason == "depth" and abs(probe.record.contact_z_mm) < 0.5, probe.rejected
+    assert probe.fit.model in ("linear", "linear-offset")
+    assert probe.stiffness_n_per_mm == pytest.approx(0.005, rel=0.05)
+
+
 @pytest.fixture(scope="module")
 def noisy_sensor():
     scene = Scene(name="noisy", tissue={"stiffness_n_per_mm": 0.12}, sensor={"noise_n": 0.3, "tilt": True})
