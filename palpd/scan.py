@@ -8,7 +8,7 @@ from typing import Callable
 from palpd import strategies
 from palpd.bench import Bench
 from palpd.config import RATE_MODELS
-from palpd.control.contact import contact_thresholds
+from palpd.control.contact import contact_thresholds, tare_summary
 from palpd.control.palpation import Palpation, PalpationRecord
 from palpd.probe import Probe, judge
 from palpd.control.tasks import HoldAndCollect, MoveTo
@@ -125,6 +125,7 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     wall_start, robot_start = time.monotonic(), bench.clock.now()
     probes: list[Probe] = []
     faults = []
+    tared = None
     try:
         servo.start()  # homes the arm first, supervised: after a category-0 stop it may lie anywhere
         xy = planner.next_probe()
@@ -134,6 +135,7 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
         tare = HoldAndCollect(p.tare_samples, where=first)
         servo.run(tare)
         servo.forces.tare(tare.samples)
+        tared = tare_summary(servo.forces, p, settings.servo.rate_hz)
         while xy is not None:
             for probe in palpations(bench, settings, xy):
                 probes.append(probe)
@@ -158,7 +160,8 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
         "robot_time_s": round(bench.clock.now() - robot_start, 3),
         "wall_time_s": round(time.monotonic() - wall_start, 3),
         "max_contact_force_n": round(servo.max_contact_force_n, 4),
-        "sensor": servo.health.summary(),  # re-tares at approaches and the largest drift found (control.health)
+        # re-tares at approaches and the largest drift found (control.health); what the scan's tare measured
+        "sensor": {**servo.health.summary(), "tare": tared},
         "faults": faults,
         "outcomes": dict(Counter(pr.outcome for pr in probes)),
         "verdict": verdict,

@@ -60,6 +60,8 @@ def test_a_slow_drift_is_tared_away_at_every_approach_and_the_tissue_takes_what_
     report, true_peak_n, _ = drifting_scan(-0.1, 4)
     assert report["faults"] == [] and report["palpations"] == 4
     assert report["sensor"]["retares"] >= 3 and 0.1 < report["sensor"]["max_drift_n"] < 0.3
+    tare = report["sensor"]["tare"]  # what the thresholds were scaled from
+    assert tare["noise_sd_n"] == pytest.approx(0.01, rel=0.3) and tare["contact_on_n"] == 0.03 and len(tare["bias_n"]) == 3
     assert true_peak_n < report["max_contact_force_n"] + 0.1  # what palpd read is what the tissue took
 
 

@@ -75,3 +75,12 @@ def contact_thresholds(palpation, noise: SensorNoise | None, rate_hz: float) -> 
     sd = filtered_sd(noise.sd_n, p.contact_filter_s, rate_hz)
     return ContactThresholds(max(p.contact_on_n, p.contact_on_sd * sd), max(p.contact_off_n, p.contact_off_sd * sd),
                              p.contact_filter_s, noise.sd_n)
+
+
+def tare_summary(forces, palpation, rate_hz: float) -> dict:
+    """What a tare found (the zero per axis, the noise and drift it measured) and the contact thresholds those
+    set: the scan report's `sensor.tare`, so a reader sees why contact was judged where it was."""
+    th = contact_thresholds(palpation, forces.noise, rate_hz)
+    measured = forces.noise.as_dict() if forces.noise is not None else {"noise_sd_n": None, "drift_n_per_s": None}
+    return {"bias_n": [round(v, 5) for v in forces.bias_n], **measured,
+            "contact_on_n": round(th.on_n, 4), "contact_off_n": round(th.off_n, 4)}

@@ -14,6 +14,12 @@ from palpd.control.contact import SensorNoise, measure_noise
 Vec3 = tuple[float, float, float]
 
 
+def zero_of(samples: list[ForceSample]) -> Vec3:
+    """The sensor's zero: the mean of samples read out of contact, per axis."""
+    n = len(samples)
+    return tuple(sum(s.force_n[i] for s in samples) / n for i in range(3))  # type: ignore[return-value]
+
+
 class ForceReader:
     def __init__(self, axes: str, sensor_tilts: bool, q_aligned: Vec3) -> None:
         self.axes = axes
@@ -25,8 +31,7 @@ class ForceReader:
 
     def tare(self, samples: list[ForceSample]) -> None:
         """Take the mean of samples read out of contact as the sensor's zero, and measure their noise."""
-        n = len(samples)
-        self.bias_n = tuple(sum(s.force_n[i] for s in samples) / n for i in range(3))  # type: ignore[assignment]
+        self.bias_n = zero_of(samples)
         self.noise = measure_noise(samples) or self.noise
 
     def tissue_force(self, sample: ForceSample, q: Vec3) -> Vec3:

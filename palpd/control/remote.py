@@ -15,6 +15,7 @@ import time
 from palpd.bench import Bench, check_reach
 from palpd.control.process import servo_main
 from palpd.control.contact import measure_noise
+from palpd.control.forces import zero_of
 from palpd.control.ring import FLAG_FAULT, SampleRing
 from palpd.control.safety import Fault
 from palpd.errors import PalpdError, ScanFault
@@ -73,6 +74,7 @@ class RemoteForces:
         """The child's ForceReader takes the mean of these samples as the sensor's zero; their noise is
         measured here too (the contact thresholds of the palpations sent to the child scale with it)."""
         self.servo.call("tare", list(samples))
+        self.bias_n = zero_of(samples)
         self.noise = measure_noise(samples) or self.noise
 
 
