@@ -73,9 +73,13 @@ class Decision:
         return all(_sds(lump) <= tolerance for lump in self.lumps())
 
     def _unexplored(self) -> tuple[float, float] | None:
-        """The spot farthest from every reading, when it is farther than `coverage_mm`: a lump there
-        whose felt footprint is narrower than that could not have shown in any reading yet."""
-        return self.coverage.farthest_beyond(self.settings.coverage_mm)
+        """The spot farthest from every reading, when it is farther than `coverage_mm` (`none_coverage_mm`
+        while the choice is `none`: "no lump" claims the whole tissue, and a sharp-edged lump is felt only
+        within its radius): a lump there whose felt footprint is narrower could not have shown yet."""
+        reach = self.settings.coverage_mm
+        if self.choice is not None and self.choice.chosen == "none":
+            reach = min(reach, self.settings.none_coverage_mm)
+        return self.coverage.farthest_beyond(reach)
 
     def _unpinned(self) -> np.ndarray | None:
         """Where a lump of the chosen parametric model still needs a reading to be pinned down, or None
