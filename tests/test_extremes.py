@@ -8,7 +8,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, Phase, given, settings as hsettings, strategies as st
 
-from drivers.sim.scene import Scene
+from conftest import SCENES
+from drivers.sim.scene import Scene, load_scene
+from drivers.sim.tissue import StiffnessField
+from palpd.learner.planner import make_learner
 from palpd.bench import open_simulated_bench
 from palpd.config import Settings
 from palpd.control.contact import contact_thresholds, measure_noise
@@ -104,6 +107,21 @@ def test_tissue_too_soft_to_outrun_a_drift_follower_still_fires_contact():
     assert probe.record.stop_reason == "depth" and abs(probe.record.contact_z_mm) < 0.5, probe.rejected
     assert probe.fit.model in ("linear", "linear-offset")
     assert probe.stiffness_n_per_mm == pytest.approx(0.005, rel=0.05)
+
+
+def test_no_lump_is_said_only_once_a_lump_like_the_soft_tissue_one_could_not_hide():
+    """The soft-tissue scene's field as the simulator feels it, read as its palpations read it (±2 %): with
+    every spot within 18 mm of a reading the learner said "no lump" after 10 palpations, none of them within
+    11 mm of the 10 mm lump's centre. It must palpate inside the lump before it stops."""
+    scene = load_scene(SCENES / "soft-tissue.toml")
+    field, (lump,) = StiffnessField(scene), scene.lump
+    learner = make_learner(SETTINGS.updated(learner={"grid_points": 61}), scene.tissue.size_mm, 0)
+    rng, felt = np.random.default_rng(0), False
+    while not felt and (xy := learner.next_probe(40)) is not None:
+        k = field.k_at(*xy)
+        learner.observe(xy, k * (1.0 + rng.normal(0.0, 0.02)), 0.02 * k)
+        felt = math.dist(xy, lump.center_mm) < lump.radius_mm
+    assert felt, f"stopped with {learner.verdict()!r} after {learner.points} palpations, none inside the lump"
 
 
 @pytest.fixture(scope="module")
