@@ -14,6 +14,7 @@ from conftest import ROOT
 from palpd.bus.messages import Estimate, Palpation, Stiffness
 
 TIMEOUT_MS = 10_000
+STARTUP_MS = 30_000
 
 
 @pytest.fixture
@@ -62,7 +63,8 @@ def test_learner_process_turns_palpations_into_estimates_with_next_probe(ctx, tm
     proc = subprocess.Popen([sys.executable, "-m", "palpd", "learner", "--config", str(cfg)], cwd=ROOT,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        assert {receive(bus)[0] for _ in range(2)} == {b"\x01stiffness", b"\x01palpation"}
+        # the learner subscribes once its numerics are loaded: seconds on a busy machine
+        assert {receive(bus, STARTUP_MS)[0] for _ in range(2)} == {b"\x01stiffness", b"\x01palpation"}
         estimates = ctx.socket(zmq.SUB)
         estimates.setsockopt(zmq.LINGER, 0)
         estimates.setsockopt(zmq.SUBSCRIBE, b"estimate")
