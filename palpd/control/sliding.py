@@ -41,10 +41,18 @@ class SlidingPalpation:
         self._phase, self._z, self._xy = "travel", settings.clearance_mm, tuple(start_xy_mm)
         self._path: LinearMove | None = None
         self._t0 = self._last_t = 0.0
+        self._winding_down = False
         self.done = False
+
+    def wind_down(self) -> None:
+        """A stop was asked for (scan.stop, SIGTERM): lift off now, keeping what the path has read so far;
+        travelling, go on to above the start and never touch down."""
+        self._winding_down = True
 
     def step(self, tick) -> Vec3:
         dt, self._last_t = tick.motion_t_s - self._last_t, tick.motion_t_s
+        if self._winding_down and self._phase in ("approach", "press", "slide"):
+            self._lift("stopped")
         return getattr(self, "_" + self._phase)(tick, dt)
 
     def _travel(self, tick, dt) -> Vec3:

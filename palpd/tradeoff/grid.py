@@ -4,7 +4,7 @@ A grid file (TOML) lists them as `[[run]]` tables:
 
     [[run]]
     strategy = "active"          # active | raster | random
-    palpation = "discrete"       # discrete (the default) | sliding (active or raster)
+    palpation = "discrete"       # discrete (the default) | sliding (any strategy)
     palpations = 40              # the budget: active's learner.max_palpations, the raster's or random count
                                  # (sliding: paths, a raster's rows)
     settings = { learner = { tolerance_mm = 1.0 } }   # any settings, as in palpd.toml
