@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 
+from palpd.control.contact import contact_thresholds
 from palpd.control.palpation import PalpationRecord
 from palpd.control.sliding import SlidingPalpation
 from palpd.stiffness.sliding import stiffness_points
@@ -25,15 +26,19 @@ def slide(bench, settings, path) -> list:
     """One sliding palpation through the servo loop: a Probe per stiffness point (none if it found no contact)."""
     from palpd.scan import Probe
 
-    task = SlidingPalpation(path[0], path[1], settings.palpation)
+    thresholds = contact_thresholds(settings.palpation, getattr(bench.servo.forces, "noise", None),
+                                    settings.servo.rate_hz)
+    task = SlidingPalpation(path[0], path[1], settings.palpation, thresholds)
     bench.servo.run(task, timeout_s=_timeout_s(path, settings.palpation))
     rec = task.record
     points = stiffness_points(rec, settings.palpation)
     if not points and rec.stop_reason == "stopped":
         return []  # stopped before it read anything: not a failed palpation
-    if not points:
+    if not points:  # a named outcome, like a discrete palpation's (the learner and the report need one)
         record = PalpationRecord(tuple(path[0]), stop_reason=rec.stop_reason or "no_contact")
-        return [Probe(record, None, "no contact found" if rec.contact_z_mm is None else "path too short to read")]
+        if rec.contact_z_mm is None:
+            return [Probe(record, None, "no contact found", "no_contact")]
+        return [Probe(record, None, f"path too short to read ({rec.stop_reason})", "rejected")]
     return [Probe(PalpationRecord(point.xy_mm, point.xy_mm, rec.contact_z_mm, max_force_n=rec.max_force_n,
                                   stop_reason=rec.stop_reason), point) for point in points]
 
