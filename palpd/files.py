@@ -8,6 +8,22 @@ from pathlib import Path
 from palpd.errors import PalpdError
 
 
+def check_writable(path: str | Path) -> None:
+    """Fail now, not after a long scan, when `path` could not be written later: its directory is made
+    (as writing would) and must be writable, and the path itself must not be a directory."""
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise PalpdError(f"{path}: cannot write: {path.parent} is a file, not a directory") from None
+    except OSError as exc:
+        raise PalpdError(f"{path}: cannot write: {exc.strerror}") from None
+    if path.is_dir():
+        raise PalpdError(f"{path}: cannot write: Is a directory")
+    if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise PalpdError(f"{path}: cannot write: Permission denied")
+
+
 def write_json(path: str | Path, data) -> None:
     write_text(path, json.dumps(data, indent=2) + "\n")
 

@@ -45,26 +45,26 @@ def test_a_client_drives_a_scan_and_gets_the_same_estimate_by_request(daemon):
     subscriber = daemon.subscriber()
     # A late joiner learns the state by asking, never by sleeping: subscriptions settle while we ask.
     assert daemon.call("estimate.get")["estimate"] is None
-    reply = daemon.call("scan.start", {"strategy": "raster", "max_palpations": 25})
-    assert reply["ok"] and reply["expected_total"] == 25, reply
+    reply = daemon.call("scan.start", {"strategy": "raster", "max_palpations": 16})
+    assert reply["ok"] and reply["expected_total"] == 16, reply
     seen = collect_until_done(subscriber)
     for topic, payloads in seen.items():
         for payload in payloads:
             assert required[topic] <= set(payload), (topic, payload)
             EVENT_MODELS[topic].model_validate(payload)
-    assert len(seen["stiffness"]) >= 20 and all(0.05 < s["stiffness_n_per_mm"] < 2 for s in seen["stiffness"])
+    assert len(seen["stiffness"]) == 16 and all(0.05 < s["stiffness_n_per_mm"] < 2 for s in seen["stiffness"])
     final = seen["estimate"][-1]
     assert final["points"] == len(seen["stiffness"]) and len(final["lumps"]) == 1
     assert [p["seq"] for p in seen["palpation"]] == sorted(p["seq"] for p in seen["palpation"])
     assert daemon.call("estimate.get")["estimate"] == final
     status = daemon.wait_for(lambda s: s["state"] == "ready", what="scan end")
-    assert status["palpations"] == 25 and not status["resumable"]
+    assert status["palpations"] == 16 and not status["resumable"]
     session = daemon.state_dir / "sessions" / status["session"]
-    assert len(read_journal(session / "journal.jsonl")) == 25
+    assert len(read_journal(session / "journal.jsonl")) == 16
     assert json.loads((session / "session.json").read_text())["status"] == "finished"
     recorded = read_messages(session / "recording-1.mcap")
     assert [p for t, p in recorded if t == "estimate"][-1] == final
-    assert sum(t == "palpation" for t, _ in recorded) == 25
+    assert sum(t == "palpation" for t, _ in recorded) == 16
     official = read_closed(session / "recording-1.mcap")  # the official reader agrees, schemas and all
     assert [(t, p) for t, p, _ in official["messages"]] == recorded
     samples = [(p, log_ns) for t, p, log_ns in official["messages"] if t == "samples"]
@@ -80,7 +80,7 @@ def test_a_client_drives_a_scan_and_gets_the_same_estimate_by_request(daemon):
             EVENT_MODELS[topic].model_validate(payload)
     replayed = subprocess.run([sys.executable, "-m", "palpd", "replay", str(session)], capture_output=True, text=True)
     assert replayed.returncode == 0 and "the recorded estimate is reproduced" in replayed.stdout, replayed.stdout
-    assert "(25 re-segmented from raw samples)" in replayed.stdout, replayed.stdout  # not the journal's traces
+    assert "(16 re-segmented from raw samples)" in replayed.stdout, replayed.stdout  # not the journal's traces
 
 
 def test_sigterm_mid_scan_stops_safely_and_exits_0(daemon):
@@ -102,7 +102,7 @@ def test_kill_9_mid_scan_then_restart_reloads_every_journaled_palpation_and_fini
     try:
         first.wait_for(lambda s: s["state"] == "ready", what="ready")
         subscriber = first.subscriber("stiffness")
-        assert first.call("scan.start", {"strategy": "random", "max_palpations": 12, "seed": 3})["ok"]
+        assert first.call("scan.start", {"strategy": "random", "max_palpations": 8, "seed": 3})["ok"]
         for _ in range(3):
             assert receive(subscriber) is not None
         first.signal(signal.SIGKILL)
@@ -111,7 +111,7 @@ def test_kill_9_mid_scan_then_restart_reloads_every_journaled_palpation_and_fini
         first.close()
     (session,) = (tmp_path / "state" / "sessions").iterdir()
     journaled = read_journal(session / "journal.jsonl")
-    assert 3 <= len(journaled) < 12
+    assert 3 <= len(journaled) < 8
     cut, error = read_streaming(session / "recording-1.mcap")  # what the official reader makes of the cut file
     assert cut == read_messages(session / "recording-1.mcap") and ("status", cut[0][1]) == cut[0]
     second = Daemon(tmp_path).start()
@@ -126,10 +126,10 @@ def test_kill_9_mid_scan_then_restart_reloads_every_journaled_palpation_and_fini
         reply = second.call("scan.start", {"resume": True})
         assert reply["ok"] and reply["already_done"] == len(journaled), reply
         final = collect_until_done(subscriber)["estimate"][-1]
-        assert final["points"] == 12
+        assert final["points"] == 8
         entries = read_journal(session / "journal.jsonl")
-        assert entries[:len(journaled)] == journaled and len(entries) == 12
-        assert [e["index"] for e in entries] == list(range(12))
+        assert entries[:len(journaled)] == journaled and len(entries) == 8
+        assert [e["index"] for e in entries] == list(range(8))
     finally:
         second.close()
 

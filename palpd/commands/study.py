@@ -20,15 +20,25 @@ def add_parser(subparsers):
 def run(args) -> int:
     from palpd.datafile import read_dataset
     from palpd.errors import UsageError
-    from palpd.files import write_json
-    from palpd.study.methods import Options
-    from palpd.study.run import run_study
+    from palpd.files import check_writable, write_json
+    from palpd.study.inputs import check_test, check_training
 
     if not (math.isfinite(args.svm_c) and args.svm_c > 0):
         raise UsageError("--svm-c must be a positive number")
-    options = Options(c=args.svm_c, centroid_weights=_weights(args.centroid_weights))
+    weights = _weights(args.centroid_weights)
     train = read_dataset(args.train)
     tests = [read_dataset(path) for path in args.test]
+    check_training(train)
+    for test in tests:
+        check_test(test)
+    for path in (args.report, args.plot):
+        if path:
+            check_writable(path)
+    # Only now scikit-learn (the methods): a bad argument or file above is a one-line error at once.
+    from palpd.study.methods import Options
+    from palpd.study.run import run_study
+
+    options = Options(c=args.svm_c, centroid_weights=weights)
     results = run_study(train, tests, options)
     report = {"train": args.train, "tests": args.test, "svm_c": args.svm_c,
               "centroid_weights": list(options.centroid_weights), "gda": "LinearDiscriminantAnalysis",
