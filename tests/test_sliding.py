@@ -51,6 +51,9 @@ def test_sliding_reads_what_a_discrete_palpation_reads_at_the_same_spot(paper_be
         assert 0 < near.fit.stiffness_se_n_per_mm < 0.05 * near.stiffness_n_per_mm
     readings = [p.stiffness_n_per_mm for p in probes]
     assert max(readings) > 5 * min(readings)  # the edge crossed within the path is in the stream
+    edge = min(probes, key=lambda p: abs(p.record.xy_mm[0] + 2.5))  # the lump's 50 % edge (x = 7.5 - 10)
+    flat = min(probes, key=lambda p: abs(p.record.xy_mm[0] + 20.0))
+    assert edge.fit.stiffness_se_n_per_mm > 5 * flat.fit.stiffness_se_n_per_mm  # it averages a changing span
 
 
 def test_the_tissue_drags_the_sliding_tip_and_the_drag_is_measured(paper_bench):
