@@ -132,7 +132,7 @@ class Client:
 
     def scan(self, strategy: str = "active", *, wait: bool = False, wait_timeout_s: float | None = None,
              **options) -> ScanStartReply | StatusReply:
-        """scan.start (options: max_palpations, seed, center_mm, size_mm, depth_mm, speed_mm_s, resume).
+        """scan.start (options: max_palpations, seed, center_mm, size_mm, depth_mm, speed_mm_s, palpation, resume).
 
         wait=True: return the status once the scan has ended (ready, or fault: check `.state`).
         """

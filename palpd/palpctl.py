@@ -38,6 +38,9 @@ def build_parser() -> argparse.ArgumentParser:
     scan.add_argument("--size-mm", type=float, nargs=2, metavar=("W", "H"), help="size of the region")
     scan.add_argument("--depth-mm", type=float, metavar="D")
     scan.add_argument("--speed-mm-s", type=float, metavar="V")
+    scan.add_argument("--palpation", choices=["discrete", "sliding"],
+                      help="press point by point, or slide along paths (--max-palpations then counts paths); "
+                           "default: the daemon's palpation.mode")
     scan.add_argument("--resume", action="store_true", help="continue the unfinished session")
     scan.add_argument("--wait", action="store_true", help="return once the scan has ended (exit 1 on a fault)")
     commands.add_parser("estop", help="stop the robot now (latched)")
@@ -54,7 +57,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def scan_options(args) -> dict:
-    names = ("max_palpations", "seed", "center_mm", "size_mm", "depth_mm", "speed_mm_s")
+    names = ("max_palpations", "seed", "center_mm", "size_mm", "depth_mm", "speed_mm_s", "palpation")
     options = {name: getattr(args, name) for name in names if getattr(args, name) is not None}
     return options | ({"resume": True} if args.resume else {})
 

@@ -60,11 +60,11 @@ def plan(strategy: str, size_mm, max_palpations: int, seed: int, settings=None):
 def _sliding_plan(strategy: str, size_mm, max_palpations: int, seed: int, settings):
     from palpd import slide
 
-    if strategy == "raster":
-        return FixedPlan(slide.raster_paths(size_mm, max_palpations))
+    if strategy in ("raster", "random"):
+        return FixedPlan(slide.fixed_paths(strategy, size_mm, max_palpations, seed, settings.palpation.sliding_length_mm))
     if strategy == "active":
         return slide.SlidingPlanner(size_mm, settings, max_palpations, seed)
-    raise UsageError(f"strategy {strategy!r} has no sliding plan; slide with raster or active")
+    raise UsageError(f"unknown strategy {strategy!r}; choose from {', '.join(strategies.STRATEGIES)}")
 
 
 def palpations(bench: Bench, settings, planned) -> list[Probe]:

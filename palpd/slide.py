@@ -2,13 +2,19 @@
 modulation cycle along it one reading, reported and learned from like a discrete palpation's.
 
 - raster: the rows of a serpentine raster, edge to edge (max_palpations is the number of rows);
+- random: max_palpations paths of sliding_length_mm, each through a uniform random point at a uniform random
+  heading (kept inside the tissue), nearer end first;
 - active: the learner's next probe, extended into a path across its current 50 % boundary
   (palpd.learner.paths); max_palpations counts paths, the learner's own stop rule ends the scan.
+
+The daemon runs the same plans over a scan's region (palpd.daemon.jobs); there a path's readings are
+journaled with the path's index, so a resumed scan knows how many paths are done.
 """
 from __future__ import annotations
 
 import math
 
+from palpd.control.contact import contact_thresholds
 from palpd.control.palpation import PalpationRecord
 from palpd.control.sliding import SlidingPalpation
 from palpd.stiffness.sliding import stiffness_points
@@ -20,13 +26,19 @@ def slide(bench, settings, path) -> list:
     """One sliding palpation through the servo loop: a Probe per stiffness point (none if it found no contact)."""
     from palpd.scan import Probe
 
-    task = SlidingPalpation(path[0], path[1], settings.palpation)
+    thresholds = contact_thresholds(settings.palpation, getattr(bench.servo.forces, "noise", None),
+                                    settings.servo.rate_hz)
+    task = SlidingPalpation(path[0], path[1], settings.palpation, thresholds)
     bench.servo.run(task, timeout_s=_timeout_s(path, settings.palpation))
     rec = task.record
     points = stiffness_points(rec, settings.palpation)
-    if not points:
+    if not points and rec.stop_reason == "stopped":
+        return []  # stopped before it read anything: not a failed palpation
+    if not points:  # a named outcome, like a discrete palpation's (the learner and the report need one)
         record = PalpationRecord(tuple(path[0]), stop_reason=rec.stop_reason or "no_contact")
-        return [Probe(record, None, "no contact found" if rec.contact_z_mm is None else "path too short to read")]
+        if rec.contact_z_mm is None:
+            return [Probe(record, None, "no contact found", "no_contact")]
+        return [Probe(record, None, f"path too short to read ({rec.stop_reason})", "rejected")]
     return [Probe(PalpationRecord(point.xy_mm, point.xy_mm, rec.contact_z_mm, max_force_n=rec.max_force_n,
                                   stop_reason=rec.stop_reason), point) for point in points]
 
@@ -35,13 +47,70 @@ def _timeout_s(path, p) -> float:
     return 30.0 + math.dist(path[0], path[1]) / p.sliding_speed_mm_s
 
 
-def raster_paths(size_mm, rows: int) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+Path = tuple[tuple[float, float], tuple[float, float]]
+
+
+def raster_paths(size_mm, rows: int) -> list[Path]:
     """Serpentine rows across the tissue, a row's width apart (the outer rows on the edges)."""
     from palpd.strategies import _axis
 
     half_x = size_mm[0] / 2.0
     ys = _axis(size_mm[1], max(RASTER_ROWS_MIN, rows))
     return [((-half_x, y), (half_x, y)) if i % 2 == 0 else ((half_x, y), (-half_x, y)) for i, y in enumerate(ys)]
+
+
+def random_paths(size_mm, count: int, seed: int, length_mm: float) -> list[Path]:
+    """count paths through uniform random points at uniform random headings, each slid back inside the
+    tissue (cut at its edges if longer), the end nearer the last path's end first."""
+    import numpy as np
+
+    from palpd.learner.paths import _clipped, _nearer_end_first
+    from palpd.strategies import random_points
+
+    headings = np.random.default_rng([seed, 1]).uniform(0.0, math.pi, count)  # its own stream: the
+    paths, here = [], None                                                     # points are random_points'
+    for centre, heading in zip(random_points(size_mm, count, seed), headings):
+        path = _nearer_end_first(_clipped(centre, float(heading), length_mm, size_mm), here)
+        paths.append(path)
+        here = path[1]
+    return paths
+
+
+def fixed_paths(strategy: str, size_mm, count: int, seed: int, length_mm: float) -> list[Path]:
+    """The paths of a fixed plan (raster rows or random paths), tissue frame, centred on the origin."""
+    if strategy == "raster":
+        return raster_paths(size_mm, count)
+    return random_paths(size_mm, count, seed, length_mm)
+
+
+def shifted(path: Path, offset) -> Path:
+    return tuple((x + offset[0], y + offset[1]) for x, y in path)  # type: ignore[return-value]
+
+
+class PathPlan:
+    """The learner's next probe extended into a path (learner frame in, `offset` added on the way out).
+    At most max_paths paths; the learner's own stop rule (readings are many per path: not its budget)
+    ends it sooner. `paths` may start above 0 (a resumed scan)."""
+
+    def __init__(self, learner, settings, max_paths: int, offset=(0.0, 0.0), paths_done: int = 0) -> None:
+        p = settings.palpation
+        self.learner, self.max_paths, self.offset, self.paths = learner, max_paths, offset, paths_done
+        self.length_mm = p.sliding_length_mm
+        self.costs = (p.travel_speed_mm_s, p.sliding_speed_mm_s, p.sliding_speed_mm_s / p.modulation_hz)
+        self.here = None
+
+    def next_path(self) -> Path | None:
+        from palpd.learner.paths import plan_path
+
+        if self.paths >= self.max_paths:
+            return None
+        centre = self.learner.next_probe(math.inf)
+        if centre is None:
+            return None
+        self.paths += 1
+        path = plan_path(self.learner, centre, self.length_mm, self.here, self.costs)
+        self.here = path[1]
+        return shifted(path, self.offset)
 
 
 class SlidingPlanner:
@@ -51,24 +120,11 @@ class SlidingPlanner:
         from palpd.learner.planner import ActivePlanner
 
         self.active = ActivePlanner(size_mm, settings, max_paths, seed)
-        self.max_paths, self.expected_total, self.paths = max_paths, max_paths, 0
-        p = settings.palpation
-        self.length_mm = p.sliding_length_mm
-        self.costs = (p.travel_speed_mm_s, p.sliding_speed_mm_s, p.sliding_speed_mm_s / p.modulation_hz)
-        self.here = None
+        self.paths = PathPlan(self.active.learner, settings, max_paths)
+        self.expected_total = max_paths
 
     def next_probe(self):
-        from palpd.learner.paths import plan_path
-
-        if self.paths >= self.max_paths:
-            return None
-        centre = self.active.learner.next_probe(math.inf)  # readings are many per path: paths are the budget
-        if centre is None:
-            return None
-        self.paths += 1
-        path = plan_path(self.active.learner, centre, self.length_mm, self.here, self.costs)
-        self.here = path[1]
-        return path
+        return self.paths.next_path()
 
     def observe(self, probe) -> None:
         self.active.observe(probe)

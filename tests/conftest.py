@@ -42,7 +42,7 @@ WALL_CLOCK_GROUP = "wall_clock"
 # collection order, so these start at once and the many short modules fill in around them; a long unit
 # started last would leave one core idle at the end of the run.
 LONGEST_FIRST = (WALL_CLOCK_GROUP, "test_active_scan", "test_daemon", "test_service_api", "test_daemon_service",
-                 "test_scan", "test_daemon_learner", "test_study", "test_tradeoff")
+                 "test_scan", "test_daemon_learner", "test_daemon_sliding", "test_study", "test_tradeoff")
 
 
 def _work_unit(nodeid: str) -> str:

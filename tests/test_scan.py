@@ -3,6 +3,7 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, strategies as st
 
 from conftest import SCENES, assert_one_line_error
 from drivers.sim.scene import Scene, load_scene
@@ -97,6 +98,18 @@ def test_raster_and_random_plans():
     assert (np.abs(points) <= [30, 20]).all()
     assert plan("random", (60, 40), 5, 3).points == plan("random", (60, 40), 5, 3).points
     assert plan("random", (60, 40), 5, 3).points != plan("random", (60, 40), 5, 4).points
+
+
+@given(st.floats(5.0, 200.0), st.floats(5.0, 200.0), st.floats(1.0, 500.0), st.integers(0, 2**32 - 1))
+def test_random_sliding_paths_stay_on_the_tissue_at_their_length(width, height, length, seed):
+    settings = Settings().updated(palpation={"mode": "sliding", "sliding_length_mm": length})
+    paths = plan("random", (width, height), 6, seed, settings).points
+    assert len(paths) == 6 and paths == plan("random", (width, height), 6, seed, settings).points
+    for start, end in paths:
+        assert all(abs(x) <= width / 2 + 1e-9 and abs(y) <= height / 2 + 1e-9 for x, y in (start, end))
+        assert 0 < math.dist(start, end) <= length + 1e-9  # cut only at the edges
+    for (_, end), (start, far) in zip(paths, paths[1:]):  # the nearer end first
+        assert math.dist(end, start) <= math.dist(end, far) + 1e-9
 
 
 def test_cli_scan_writes_report_and_plot(tmp_path, run_cli):

@@ -13,6 +13,7 @@ from palpd.bench import open_simulated_bench
 from palpd.config import Settings
 from palpd.control.sliding import SlidingPalpation
 from palpd.control.tasks import HoldAndCollect, MoveTo
+from palpd.learner.paths import _clipped
 from palpd.errors import ScanFault
 from palpd.scan import palpate
 from palpd.slide import slide
@@ -50,6 +51,9 @@ def test_sliding_reads_what_a_discrete_palpation_reads_at_the_same_spot(paper_be
         assert 0 < near.fit.stiffness_se_n_per_mm < 0.05 * near.stiffness_n_per_mm
     readings = [p.stiffness_n_per_mm for p in probes]
     assert max(readings) > 5 * min(readings)  # the edge crossed within the path is in the stream
+    edge = min(probes, key=lambda p: abs(p.record.xy_mm[0] + 2.5))  # the lump's 50 % edge (x = 7.5 - 10)
+    flat = min(probes, key=lambda p: abs(p.record.xy_mm[0] + 20.0))
+    assert edge.fit.stiffness_se_n_per_mm > 5 * flat.fit.stiffness_se_n_per_mm  # it averages a changing span
 
 
 def test_the_tissue_drags_the_sliding_tip_and_the_drag_is_measured(paper_bench):
@@ -83,3 +87,38 @@ def test_a_lateral_force_stop_lifts_the_probe_off_without_sliding_on():
     watch.no_press_nor_slide_after_the_fault()
     assert bench.world.contact_force_n == 0.0 and bench.world.tip_mm()[2] > 0.0
     assert bench.world.amplifiers_on is False
+
+
+def test_a_noisy_sensor_does_not_fake_the_surface_a_slide_presses_from():
+    """At 0.08 N of noise a raw sample above the 0.03 N floor comes on almost every approach: judged on the
+    low-passed force against thresholds scaled to the tare's noise, contact is the surface, and the path reads."""
+    settings, scene = Settings(), load_scene(SCENES / "noisy-sensor.toml")
+    bench = open_simulated_bench(settings, scene, seed=0)
+    p = settings.palpation
+    bench.servo.start()
+    start = (-25.0, 20.0, p.clearance_mm)
+    bench.servo.run(MoveTo(start, p.travel_speed_mm_s, p.accel_mm_s2))
+    tare = HoldAndCollect(p.tare_samples, where=start)
+    bench.servo.run(tare)
+    bench.servo.forces.tare(tare.samples)
+    for y_mm in (20.0, 24.0):  # background, ~0.3 N pressed
+        probes = slide(bench, settings, ((-25.0, y_mm), (-10.0, y_mm)))
+        assert len(probes) >= 3 and all(pr.outcome == "fit" for pr in probes), [pr.rejected for pr in probes]
+        assert probes[0].record.stop_reason == "path_end"
+        assert abs(probes[0].record.contact_z_mm) < 1.0  # the surface (z = 0), not a noise spike above it
+    bench.servo.stop()
+
+
+@given(st.floats(5.0, 200.0), st.floats(5.0, 200.0), st.floats(0.0, 1.0), st.floats(0.0, 1.0),
+       st.floats(-math.pi, math.pi), st.floats(1.0, 500.0))
+def test_a_planned_path_passes_through_the_spot_asked_for_and_stays_on_the_tissue(width, height, fx, fy, angle,
+                                                                                  length):
+    """Slid sideways to fit (as it once was near the edges), a path missed the spot the learner asked for, which
+    then asked for it again, path after path."""
+    spot = ((fx - 0.5) * width, (fy - 0.5) * height)
+    (x0, y0), (x1, y1) = _clipped(spot, angle, length, (width, height))
+    assert all(abs(x) <= width / 2 + 1e-9 and abs(y) <= height / 2 + 1e-9 for x, y in ((x0, y0), (x1, y1)))
+    span = math.dist((x0, y0), (x1, y1))
+    assert span <= length + 1e-9
+    assert abs((x1 - x0) * (spot[1] - y0) - (y1 - y0) * (spot[0] - x0)) <= 1e-6 * max(span, 1.0)  # on its line
+    assert min(math.dist(spot, (x0, y0)), math.dist(spot, (x1, y1))) <= span + 1e-9  # between its ends

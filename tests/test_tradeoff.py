@@ -144,3 +144,14 @@ def test_region_iou_counts_missed_and_false_lumps_as_area():
     assert one == pytest.approx(3.14159 * 25 / (100 + 3.14159 * 25), abs=0.03)  # the missed lump halves it
     assert metrics.region_iou([], [], (60.0, 60.0)) == 1.0
     assert metrics.region_iou([], [{"boundary_mm": square}], (60.0, 60.0)) == 0.0
+
+
+def test_the_plot_of_a_sweep_on_scenes_without_lumps_is_drawn(tmp_path):
+    """No centre error anywhere (no lump to be off): the log scale had nothing to scale and the sweep died
+    after writing its CSVs, without a plot."""
+    rows = [{"scene": "no-lump", "seed": 0, "strategy": strategy, "palpation": palpation, "setting": "default",
+             "palpations": 10, "robot_time_s": 18.5 + i, "center_error_mm": None, "radius_error_mm": None,
+             "iou": 1.0, "lumps_found": 0, "lumps_true": 0}
+            for i, (strategy, palpation) in enumerate(pareto.COLOURS)]
+    pareto.plot(rows, pareto.settings_summary(rows), tmp_path / "pareto.png")
+    assert (tmp_path / "pareto.png").read_bytes().startswith(b"\x89PNG")

@@ -215,6 +215,8 @@ class ScanStartArgs(_Args):
     """Indentation depth; null: palpation.depth_mm."""
     speed_mm_s: Optional[Annotated[float, Field(gt=0, le=100)]] = None
     """Indentation speed; null: palpation.speed_mm_s."""
+    palpation: Optional[Literal["discrete", "sliding"]] = None
+    """Press point by point, or slide along paths in contact (max_palpations then counts paths); null: palpation.mode."""
     resume: bool = False
     """Continue the unfinished session instead of starting a new one (other arguments are ignored)."""
 

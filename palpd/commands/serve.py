@@ -33,11 +33,6 @@ def run(args) -> int:
     from palpd.daemon.logs import setup_logging
 
     settings = load_settings(args.config)
-    if settings.palpation.mode != "discrete":
-        from palpd.errors import ConfigError
-
-        raise ConfigError(f"palpation.mode = {settings.palpation.mode!r}: the daemon palpates discretely for now "
-                          "(sliding runs in palpd scan and palpd bench tradeoff)")
     scene, scene_path = _scene(settings, args.scene)
     check_reach(settings, scene)  # before anything binds or spawns: one line, exit 78
     security = Security.from_settings(settings.bus)  # CURVE for non-loopback endpoints, private key files

@@ -73,6 +73,7 @@ class ServoProcess:
         self.conn, self.ring, self.bench, self.realtime = conn, ring, bench, realtime
         self.servo = bench.servo
         self.servo.estop_input = ring
+        self.servo.wind_down_input = ring
         self.servo.tick_hook = self._publish
         self._task_running = False
 

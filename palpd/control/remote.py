@@ -2,7 +2,7 @@
 
 `RemoteServo` has the interface run_scan and palpate use on an in-process
 ServoLoop (start, run, stop, forces.tare, fault, last_tick, max_contact_force_n,
-reset, request_estop, timing), so the scan code runs unchanged over it. A dead
+reset, request_estop, request_wind_down, timing), so the scan code runs unchanged over it. A dead
 or hung child is never waited for: it becomes a latched fault within
 UNRESPONSIVE_S.
 """
@@ -151,6 +151,11 @@ class RemoteServo:
     def request_estop(self) -> None:
         """The software e-stop: a flag in shared memory the loop reads before it writes its next command."""
         self.ring.set_estop(True)
+
+    def request_wind_down(self, on: bool = True) -> None:
+        """Ask the task under way to end gently (a slide lifts off at once): a flag in shared memory."""
+        if self.ring is not None:  # closed: there is no task to ask
+            self.ring.set_wind_down(on)
 
     def run(self, task, timeout_s: float = 120.0) -> None:
         """Run the task in the servo process; the finished task's state is copied back into `task`."""

@@ -5,7 +5,8 @@ Single producer (the servo loop writes one sample per tick), single consumer
 write index, so a reader never sees a slot before it is complete; a reader that
 falls more than a ring behind loses the oldest samples and is told how many.
 The header also carries the loop's heartbeat, its clock and tick counters, and
-the parent's e-stop input, which the loop reads every tick.
+the parent's e-stop input, which the loop reads every tick, and its wind-down request (end the task under
+way gently: a slide lifts off at once), which a task that can wind down reads every tick.
 """
 from __future__ import annotations
 
@@ -15,8 +16,9 @@ from multiprocessing import shared_memory
 import numpy as np
 
 CAPACITY = 1 << 14  # samples: 16 s at 1 kHz
-# write_index, heartbeat, ticks, overruns, now_s (the producer's, written in one call), estop (the parent's)
-_HEADER = struct.Struct("<QQQQdQ")
+# write_index, heartbeat, ticks, overruns, now_s (the producer's, written in one call), estop, wind_down
+# (the parent's)
+_HEADER = struct.Struct("<QQQQdQQ")
 _BEAT_FIELDS = struct.Struct("<QQQd")
 _SAMPLE = struct.Struct("<d3d3d3ddII")
 SAMPLE_DTYPE = np.dtype([("t_s", "<f8"), ("q_rad", "<f8", 3), ("tip_mm", "<f8", 3), ("force_n", "<f8", 3),
@@ -24,7 +26,7 @@ SAMPLE_DTYPE = np.dtype([("t_s", "<f8"), ("q_rad", "<f8", 3), ("tip_mm", "<f8", 
 assert SAMPLE_DTYPE.itemsize == _SAMPLE.size
 HEADER_BYTES = 64
 FLAG_MOTORS_ON, FLAG_FAULT, FLAG_TASK = 1, 2, 4
-_INDEX, _BEAT, _TICKS, _OVERRUNS, _NOW, _ESTOP = (8 * i for i in range(6))
+_INDEX, _BEAT, _TICKS, _OVERRUNS, _NOW, _ESTOP, _WIND_DOWN = (8 * i for i in range(7))
 
 
 class SampleRing:
@@ -70,15 +72,21 @@ class SampleRing:
         """The e-stop input (the loop polls it like a threading.Event)."""
         return struct.unpack_from("<Q", self._buffer, _ESTOP)[0] != 0
 
+    def wind_down_wanted(self) -> bool:
+        return struct.unpack_from("<Q", self._buffer, _WIND_DOWN)[0] != 0
+
     # Consumer (the parent) -------------------------------------------------------------------------
 
     def set_estop(self, on: bool = True) -> None:
         struct.pack_into("<Q", self._buffer, _ESTOP, 1 if on else 0)
 
+    def set_wind_down(self, on: bool = True) -> None:
+        struct.pack_into("<Q", self._buffer, _WIND_DOWN, 1 if on else 0)
+
     def header(self) -> dict:
-        index, beat, ticks, overruns, now_s, estop = _HEADER.unpack_from(self._buffer, 0)
+        index, beat, ticks, overruns, now_s, estop, wind_down = _HEADER.unpack_from(self._buffer, 0)
         return {"written": index, "heartbeat": beat, "ticks": ticks, "overruns": overruns,
-                "estop": bool(estop), "now_s": now_s}
+                "estop": bool(estop), "wind_down": bool(wind_down), "now_s": now_s}
 
     def last_flags(self) -> int:
         """The flags of the newest sample (FLAG_FAULT: the loop has latched a fault); 0 before the first."""

@@ -62,6 +62,8 @@ class ServoLoop(Sensing, Stopping):
         self.tick_hook = None  # called with each Tick after the command is written (recorders, tests)
         self._estop_requested = False
         self.estop_input = None  # an outside e-stop (anything with is_set()), read every tick
+        self._wind_down_requested = False
+        self.wind_down_input = None  # an outside wind-down request (anything with wind_down_wanted())
         self.motors_on = False
         self._deadline = clock.now()
         self._motion_t = 0.0
@@ -112,13 +114,22 @@ class ServoLoop(Sensing, Stopping):
         """The software e-stop input: the next tick cuts the current and latches a fault."""
         self._estop_requested = True
 
+    def request_wind_down(self, on: bool = True) -> None:
+        """Ask the task under way to end gently (a slide lifts off at once); cleared with on=False."""
+        self._wind_down_requested = on
+
+    def _wind_down_wanted(self) -> bool:
+        return self._wind_down_requested or (self.wind_down_input is not None and self.wind_down_input.wind_down_wanted())
+
     def run(self, task, timeout_s: float = 120.0) -> None:
-        """Tick until the task is done; raises ScanFault (motors already off) if safety stops it."""
+        """Tick until the task is done; raises ScanFault (motors already off) if safety stops it.
+        A task with wind_down() hears a wind-down request on the tick it comes."""
         if self.fault is not None:
             raise ScanFault(f"fault latched ({self.fault.code}): {self.fault.message}; reset first")
         self._resume()
         give_up = self.clock.now() + timeout_s
         widen = getattr(task, "from_anywhere", False)
+        wind_down = getattr(task, "wind_down", None)
         try:
             while not task.done:
                 started = time.perf_counter()
@@ -126,6 +137,9 @@ class ServoLoop(Sensing, Stopping):
                 if widen:
                     self.supervisor.widen_to(tick)
                     widen = False
+                if wind_down is not None and self._wind_down_wanted():
+                    wind_down()
+                    wind_down = None
                 fault = self._check(tick, give_up)
                 if fault is not None:
                     self._stop_for(fault, tick)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from palpd.control.contact import ContactThresholds
 from palpd.control.palpation import NO_CONTACT_MARGIN_MM
 from palpd.control.tasks import MoveTo
 from palpd.control.trajectory import LinearMove
@@ -33,18 +34,35 @@ class SlidingRecord:
 
 
 class SlidingPalpation:
-    def __init__(self, start_xy_mm, end_xy_mm, settings) -> None:
+    """thresholds: palpd.control.contact.ContactThresholds, scaled to the noise the tare measured (None: the
+    configured floors). Contact is judged on the force low-passed like a discrete palpation's: a raw sample
+    of noise above the floor, read on the way down, is not the surface (the slide would then press into air
+    and lift at once for lost contact, reading nothing)."""
+
+    def __init__(self, start_xy_mm, end_xy_mm, settings, thresholds=None) -> None:
         self.s = settings
+        self.contact = thresholds or ContactThresholds(settings.contact_on_n, settings.contact_off_n,
+                                                       settings.contact_filter_s)
+        self._filtered_n: float | None = None
         self.record = SlidingRecord(tuple(start_xy_mm), tuple(end_xy_mm))
         self._above = (start_xy_mm[0], start_xy_mm[1], settings.clearance_mm)
         self._task = MoveTo(self._above, settings.travel_speed_mm_s, settings.accel_mm_s2)
         self._phase, self._z, self._xy = "travel", settings.clearance_mm, tuple(start_xy_mm)
         self._path: LinearMove | None = None
         self._t0 = self._last_t = 0.0
+        self._winding_down = False
         self.done = False
+
+    def wind_down(self) -> None:
+        """A stop was asked for (scan.stop, SIGTERM): lift off now, keeping what the path has read so far;
+        travelling, go on to above the start and never touch down."""
+        self._winding_down = True
 
     def step(self, tick) -> Vec3:
         dt, self._last_t = tick.motion_t_s - self._last_t, tick.motion_t_s
+        self._filter(tick.normal_force_n, dt)
+        if self._winding_down and self._phase in ("approach", "press", "slide"):
+            self._lift("stopped")
         return getattr(self, "_" + self._phase)(tick, dt)
 
     def _travel(self, tick, dt) -> Vec3:
@@ -53,9 +71,16 @@ class SlidingPalpation:
             self._phase = "approach"
         return target
 
+    def _filter(self, force_n: float, dt: float) -> None:
+        if self._filtered_n is None or self.contact.filter_s <= 0 or not math.isfinite(self._filtered_n):
+            self._filtered_n = force_n
+        else:
+            self._filtered_n += (force_n - self._filtered_n) * (1.0 - math.exp(-dt / self.contact.filter_s))
+
     def _approach(self, tick, dt) -> Vec3:
-        if tick.normal_force_n >= self.s.contact_on_n:
-            self.record.contact_z_mm, self._phase = tick.tip_mm[2], "press"
+        if self._filtered_n >= self.contact.on_n:  # the low-pass lags a rising force by its time constant:
+            lag_mm = self.s.approach_speed_mm_s * self.contact.filter_s  # the surface was that much higher
+            self.record.contact_z_mm, self._phase = tick.tip_mm[2] + lag_mm, "press"
             return self._setpoint()
         self._z -= self.s.approach_speed_mm_s * dt
         if self._z < -(self.s.sliding_depth_mm + NO_CONTACT_MARGIN_MM):
@@ -88,7 +113,7 @@ class SlidingPalpation:
     def _stopped_by(self, tick) -> bool:
         if tick.normal_force_n >= self.s.max_force_n:
             self._lift("force")
-        elif tick.normal_force_n < self.s.contact_off_n:
+        elif self._filtered_n < self.contact.off_n:
             self._lift("lost_contact")
         return self._phase != "slide"
 

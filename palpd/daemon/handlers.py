@@ -61,7 +61,7 @@ def scan_start(sup, command) -> None:
     if sup.session is not None and sup.session.meta["status"] == "unfinished":
         sup.session.finish("abandoned")
         log.info("session %s abandoned (a new scan started)", sup.session.name)
-    scan = resolved_scan(scan, sup.bench.tissue_size_mm, sup.settings.learner.max_palpations)
+    scan = resolved_scan(scan, sup.bench.tissue_size_mm, sup.settings)
     sup.session = Session.create(sup.sessions_dir, scan)
     sup.show_map(None)
     sup.estimator = make_estimator(scan_settings(sup.settings, scan), scan, sup.bench.tissue_size_mm)
@@ -78,14 +78,16 @@ def _resume(sup, command) -> None:
 
 def _start(sup, command) -> None:
     scan = sup.session.meta["scan"]
-    planner = session_plan(scan, sup.estimator, len(sup.session.entries))
-    sup.job = ScanJob(sup.session, scan_settings(sup.settings, scan), planner, sup.estimator)
+    settings = scan_settings(sup.settings, scan)
+    planner = session_plan(scan, sup.estimator, sup.session.entries, settings)
+    sup.job = ScanJob(sup.session, settings, planner, sup.estimator)
     sup.job.stop_reason = None
     sup.close_recording()  # the probes' recording, if single palpations came first
     sup.open_recording(sup.session)  # names itself in the job, whose journal entries point at it
     sup.worker.submit(sup.job)
-    log.info("session %s: %s scan %s, up to %d palpations (%d done), recording %s", sup.session.name,
-             scan["strategy"], "resumed" if command.args.resume else "started", planner.expected_total,
+    log.info("session %s: %s %s scan %s, up to %d %s (%d readings done), recording %s", sup.session.name,
+             scan["strategy"], scan["palpation"], "resumed" if command.args.resume else "started",
+             planner.expected_total, "paths" if scan["palpation"] == "sliding" else "palpations",
              len(sup.session.entries), sup.job.recording)
     sup.set_state("scanning", f"scan {scan['strategy']}")
     sup.commands.reply(command, session=sup.session.name, expected_total=planner.expected_total,
@@ -94,7 +96,7 @@ def _start(sup, command) -> None:
 
 def scan_stop(sup, command) -> None:
     sup.job.stop_reason = "stopped"
-    sup.worker.stop_requested.set()
+    sup.worker.request_stop()
     sup.commands.reply(command, stopping=True)
 
 

@@ -8,23 +8,80 @@ from palpd.errors import PalpdError, ScanFault
 from palpd.scan import PARK_HEIGHT_MM, FixedPlan, palpate, plan
 
 
-def resolved_scan(args: dict, tissue_size_mm, learner_max_palpations: int) -> dict:
-    """scan.start's args with the defaults filled in, as the session keeps them (replay needs the region)."""
-    default_budget = learner_max_palpations if args["strategy"] == "active" else DEFAULT_MAX_PALPATIONS
+OLDER_SESSIONS = {"palpation": "discrete"}  # what a session written before a key existed meant
+
+
+def resolved_scan(args: dict, tissue_size_mm, settings) -> dict:
+    """scan.start's args with the defaults filled in, as the session keeps them (replay needs the region).
+    The budget counts paths when sliding (a path gives a reading per modulation cycle)."""
+    default_budget = settings.learner.max_palpations if args["strategy"] == "active" else DEFAULT_MAX_PALPATIONS
     return args | {"size_mm": list(args["size_mm"] or tissue_size_mm), "center_mm": list(args["center_mm"]),
-                   "max_palpations": args["max_palpations"] or default_budget}
+                   "max_palpations": args["max_palpations"] or default_budget,
+                   "palpation": args.get("palpation") or settings.palpation.mode}
 
 
-def session_plan(scan: dict, estimator, done: int):
-    """The planner of a session's scan with `done` palpations journaled: the learner's, or the fixed
-    plan's remaining points (fixed plans are deterministic)."""
+def session_plan(scan: dict, estimator, entries: list[dict], settings):
+    """The planner of a session's scan with `entries` journaled: the learner's, or the fixed plan's remaining
+    points or paths (fixed plans are deterministic). settings: the scan's own (scan_settings)."""
+    if scan["palpation"] == "sliding":
+        return _sliding_session_plan(scan, estimator, paths_done(entries), settings)
     if scan["strategy"] == "active":
         return LearnerPlan(estimator)
     cx, cy = scan["center_mm"]
     base = plan(scan["strategy"], scan["size_mm"], scan["max_palpations"], scan["seed"])
     planner = FixedPlan([(x + cx, y + cy) for x, y in base.points])
-    planner.points = planner.points[done:]
+    planner.points = planner.points[len(entries):]
     return planner
+
+
+def paths_done(entries: list[dict]) -> int:
+    """Paths a sliding scan has slid: a path's readings are journaled together, each with its path's index."""
+    return len({entry["path"] for entry in entries if "path" in entry})
+
+
+def _sliding_session_plan(scan: dict, estimator, done: int, settings):
+    from palpd.slide import PathPlan, fixed_paths, shifted
+
+    centre = tuple(scan["center_mm"])
+    if scan["strategy"] == "active":
+        return PathCount(LearnerPathPlan(PathPlan(estimator.learner, settings, scan["max_palpations"], centre, done)),
+                         done)
+    paths = fixed_paths(scan["strategy"], scan["size_mm"], scan["max_palpations"], scan["seed"],
+                        settings.palpation.sliding_length_mm)
+    planner = FixedPlan([shifted(path, centre) for path in paths])
+    planner.points = planner.points[done:]
+    return PathCount(planner, done)
+
+
+class LearnerPathPlan:
+    """Active sliding: the session's learner plans each path; the scan job feeds it what the path read."""
+
+    def __init__(self, paths) -> None:
+        self.paths = paths
+        self.expected_total = paths.max_paths
+
+    def next_probe(self):
+        return self.paths.next_path()
+
+    def observe(self, probe) -> None:
+        """Nothing: the job observes the journaled entry into the estimator (one learner, fed once)."""
+
+
+class PathCount:
+    """A sliding plan that knows the index of the path under way (journaled with each of its readings)."""
+
+    def __init__(self, inner, done: int) -> None:
+        self.inner, self.current = inner, done - 1
+        self.expected_total = inner.expected_total
+
+    def next_probe(self):
+        path = self.inner.next_probe()
+        if path is not None:
+            self.current += 1
+        return path
+
+    def observe(self, probe) -> None:
+        self.inner.observe(probe)
 
 
 def region_problem(args, tissue_size_mm) -> str | None:
@@ -82,6 +139,8 @@ class ScanJob:
 
     def _on_probe(self, worker, probe) -> None:
         entry = journal_entry(len(self.session.entries), probe, worker.bench.clock.now())
+        if isinstance(self.planner, PathCount):  # a sliding reading: its path, so a resumed scan goes on from there
+            entry |= {"palpation": "sliding", "path": self.planner.current}
         entry["recording"] = self.recording  # whose raw samples hold it (each run's servo clock starts anew)
         self.session.journal(entry)
         self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0,

@@ -8,6 +8,8 @@ points go in and lumps and probes come out shifted by the region's centre.
 """
 from __future__ import annotations
 
+import math
+
 from palpd.learner.planner import make_learner
 from palpd.posterior import MAP_CELLS_PER_SIDE, posterior_grid
 
@@ -18,7 +20,8 @@ def scan_settings(settings, scan: dict):
     """The settings a session's scan ran with (its strategy, budget, seed, depth and speed)."""
     return settings.updated(
         scan={"strategy": scan["strategy"], "max_palpations": scan["max_palpations"], "seed": scan["seed"]},
-        palpation={"depth_mm": scan["depth_mm"], "speed_mm_s": scan["speed_mm_s"]})
+        palpation={"depth_mm": scan["depth_mm"], "speed_mm_s": scan["speed_mm_s"],
+                   "mode": scan.get("palpation", "discrete")})
 
 
 class LearnerEstimator:
@@ -98,4 +101,6 @@ def make_estimator(settings, scan: dict | None, tissue_size_mm) -> LearnerEstima
     scan = scan or {}
     size = scan.get("size_mm") or tissue_size_mm
     budget = scan.get("max_palpations") or settings.learner.max_palpations
+    if scan.get("palpation") == "sliding":
+        budget = math.inf  # the budget counts paths (palpd.slide.PathPlan); readings are many per path
     return LearnerEstimator(settings, scan.get("center_mm") or (0.0, 0.0), size, budget, scan.get("seed") or 0)

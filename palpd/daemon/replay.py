@@ -17,7 +17,7 @@ from types import SimpleNamespace
 from palpd.bus.messages import SAMPLES_CHANNEL
 from palpd.control.onset import refine
 from palpd.control.palpation import palpation_segmenter
-from palpd.daemon.jobs import resolved_scan
+from palpd.daemon.jobs import OLDER_SESSIONS, resolved_scan
 from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.mcap import read_messages
 from palpd.daemon.session import JOURNAL, META, read_journal
@@ -93,7 +93,7 @@ def replay(session_dir: Path, settings) -> dict:
     estimator = make_estimator(settings, scan, scan["size_mm"])
     worst_k = 0.0
     for trace in traces:
-        k, sd = refit(trace, settings)
+        k, sd = journaled(trace) if trace.get("palpation") == "sliding" else refit(trace, settings)
         if trace.get("stiffness_n_per_mm") is not None and k is not None:
             worst_k = max(worst_k, abs(k - trace["stiffness_n_per_mm"]))
         outcome = "fit" if k is not None else trace.get("outcome")  # a censored reading stays a bound
@@ -110,8 +110,13 @@ def session_scan(session_dir: Path, settings) -> dict:
     except (OSError, ValueError, KeyError):
         scan = {}
     defaults = {"strategy": "raster", "max_palpations": None, "seed": 0, "center_mm": (0.0, 0.0), "size_mm": None,
-                "depth_mm": None, "speed_mm_s": None}
-    return resolved_scan(defaults | scan, settings.tissue.size_mm, settings.learner.max_palpations)
+                "depth_mm": None, "speed_mm_s": None} | OLDER_SESSIONS
+    return resolved_scan(defaults | scan, settings.tissue.size_mm, settings)
+
+
+def journaled(trace: dict) -> tuple[float | None, float]:
+    """A sliding reading as the scan read it: one modulation cycle of a path, not a palpation to cut again."""
+    return trace["stiffness_n_per_mm"], trace.get("stiffness_sd_n_per_mm") or 0.0
 
 
 def refit(trace: dict, settings) -> tuple[float | None, float]:

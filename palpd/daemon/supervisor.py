@@ -18,7 +18,7 @@ from palpd.bus.messages import SCHEMA_VERSION, recording_schemas
 from palpd.bus.publisher import EventPublisher
 from palpd.bus.security import Security
 from palpd.daemon import handlers
-from palpd.daemon.jobs import resolved_scan
+from palpd.daemon.jobs import OLDER_SESSIONS, resolved_scan
 from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.mcap import McapWriter, seal
 from palpd.daemon.notify import Notifier
@@ -103,8 +103,8 @@ class Supervisor:
                 log.warning("session %s: %s was cut short; sealed what it held", session.name, recording.name)
         log.info("session %s is unfinished (%d palpations journaled): `scan.start {\"resume\": true}` continues it",
                  session.name, len(session.entries))
-        scan = session.meta["scan"] = resolved_scan(session.meta["scan"], self.bench.tissue_size_mm,
-                                                    self.settings.learner.max_palpations)
+        scan = session.meta["scan"] = resolved_scan(OLDER_SESSIONS | session.meta["scan"], self.bench.tissue_size_mm,
+                                                    self.settings)
         self.estimator = make_estimator(scan_settings(self.settings, scan), scan, self.bench.tissue_size_mm)
         for entry in session.entries:  # the learner relearns the journal in order: where it left off
             self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0,
@@ -195,7 +195,7 @@ class Supervisor:
         self.notifier.stopping()
         if self.job is not None:
             self.job.stop_reason = "terminated"
-            self.worker.stop_requested.set()
+            self.worker.request_stop()
             self._wait_for_job(poller, self.settings.daemon.stop_timeout_s)
         if self.job is not None:
             self.bench.servo.request_estop()  # the palpation did not finish in time: trip, motors off

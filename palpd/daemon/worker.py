@@ -50,6 +50,12 @@ class ScanWorker(threading.Thread):
         self.stop_requested.clear()
         self._jobs.put(job)
 
+    def request_stop(self) -> None:
+        """The job plans nothing more, and the task under way winds down (a slide lifts off at once; a
+        discrete palpation finishes)."""
+        self.stop_requested.set()
+        self.bench.servo.request_wind_down()
+
     def quit(self) -> None:
         self._quit = True
         self._jobs.put(None)
@@ -78,6 +84,8 @@ class ScanWorker(threading.Thread):
 
     def _run_job(self, job) -> None:
         fault = None
+        if not self.stop_requested.is_set():  # a stop asked for before the job began still holds
+            self.bench.servo.request_wind_down(False)
         try:
             job(self)
         except ScanFault:

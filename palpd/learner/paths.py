@@ -41,13 +41,26 @@ def _across_boundary(grid, xy) -> float:
 
 
 def _clipped(centre, angle: float, length_mm: float, size_mm):
-    """The segment of that length and direction centred on the point, slid back inside the tissue."""
-    half_x, half_y = size_mm[0] / 2.0, size_mm[1] / 2.0
-    ux, uy = math.cos(angle) * length_mm / 2.0, math.sin(angle) * length_mm / 2.0
-    cx = min(max(centre[0], -half_x + abs(ux)), half_x - abs(ux)) if abs(ux) <= half_x else 0.0
-    cy = min(max(centre[1], -half_y + abs(uy)), half_y - abs(uy)) if abs(uy) <= half_y else 0.0
-    clamp = lambda v, h: min(max(v, -h), h)  # noqa: E731 (a path longer than the tissue is cut at its edges)
-    return ((clamp(cx - ux, half_x), clamp(cy - uy, half_y)), (clamp(cx + ux, half_x), clamp(cy + uy, half_y)))
+    """The segment of that length and direction through the point, slid along its own line until it lies
+    inside the tissue (cut at the edges where the tissue is narrower): it always passes through the point,
+    so the spot asked for is read (slid sideways, the same unread spot would be asked for again and again)."""
+    ux, uy = math.cos(angle), math.sin(angle)
+    lo, hi = _chord(centre, (ux, uy), size_mm)
+    half = length_mm / 2.0
+    shift = min(max(0.0, lo + half), hi - half) if hi - lo > length_mm else (lo + hi) / 2.0
+    a, b = max(lo, shift - half), min(hi, shift + half)
+    return ((centre[0] + a * ux, centre[1] + a * uy), (centre[0] + b * ux, centre[1] + b * uy))
+
+
+def _chord(point, direction, size_mm) -> tuple[float, float]:
+    """(t_min, t_max): where the line point + t·direction runs inside the tissue (the point is inside)."""
+    lo, hi = -math.inf, math.inf
+    for p, d, half in zip(point, direction, (size_mm[0] / 2.0, size_mm[1] / 2.0)):
+        p = min(max(p, -half), half)
+        if abs(d) > 1e-12:
+            t1, t2 = (-half - p) / d, (half - p) / d
+            lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
+    return lo, hi
 
 
 def _nearer_end_first(path, here_xy):

@@ -1,5 +1,6 @@
 """Stiffness points along a sliding palpation: one per modulation cycle, the slope of normal force against
-indentation over that cycle (least squares), at the cycle's mean position, with its standard error.
+indentation over that cycle (least squares), at the cycle's mean position, with its standard error widened
+by how much the stiffness changes over the span the cycle covers.
 
 The slope needs no contact point: an offset in depth (contact found a little late, a surface that is not
 flat under the path) moves the line, not its slope. A cycle spans sliding_speed / modulation_hz of path, so
@@ -53,8 +54,13 @@ def _cycle_point(xy, depth, force, min_swing_mm: float) -> SlidingPoint | None:
         coef, *_ = np.linalg.lstsq(design, force, rcond=None)
     residual = force - design @ coef
     covariance = np.linalg.pinv(design.T @ design) * float(residual @ residual) / (len(depth) - design.shape[1])
+    # The reading stands for one spot but averages the cycle's span, over which the stiffness changes by
+    # k'·span: that spread (as a uniform one, /√12) is part of its error. Without it a reading across an edge
+    # claimed the precision of one on flat tissue, no lump model fitted the stream to that precision, and
+    # the learner never judged its choice adequate (two-lumps ran to its 40-path budget).
+    spread = abs(float(coef[1])) * float(np.ptp(along)) / np.sqrt(12.0) if design.shape[1] == 4 else 0.0
     return SlidingPoint(tuple(float(v) for v in xy.mean(axis=0)), float(coef[0]),
-                        float(np.sqrt(covariance[0, 0])), len(depth))
+                        float(np.hypot(np.sqrt(covariance[0, 0]), spread)), len(depth))
 
 
 def _along_path(xy) -> np.ndarray:

@@ -4,7 +4,7 @@ A grid file (TOML) lists them as `[[run]]` tables:
 
     [[run]]
     strategy = "active"          # active | raster | random
-    palpation = "discrete"       # discrete (the default) | sliding (active or raster)
+    palpation = "discrete"       # discrete (the default) | sliding (any strategy)
     palpations = 40              # the budget: active's learner.max_palpations, the raster's or random count
                                  # (sliding: paths, a raster's rows)
     settings = { learner = { tolerance_mm = 1.0 } }   # any settings, as in palpd.toml
@@ -45,7 +45,8 @@ def _entries(*rows: dict) -> list[GridEntry]:
 
 # The knobs a user turns: active's stop rule (tolerance, confidence) and indentation (depth, speed) at its
 # default budget; raster and random at counts from a quick look to the seed paper's 81; sliding at speeds
-# from 10 to 40 mm/s (the modulation faster with the speed: a reading every 2.5-4 mm of path) and as a raster.
+# from 10 to 40 mm/s (the modulation faster with the speed: a reading every 2.5-4 mm of path), as a raster
+# and along random paths.
 DEFAULT_GRID = _entries(
     {"strategy": "active"},
     *({"strategy": "active", "settings": {"learner": {"tolerance_mm": t}}} for t in (0.25, 1.0, 2.0)),
@@ -60,6 +61,7 @@ DEFAULT_GRID = _entries(
                                                                                              (20.0, 8.0))),
     {"strategy": "active", "palpation": "sliding", "settings": {"palpation": {"sliding_speed_mm_s": 40.0}}},
     {"strategy": "raster", "palpation": "sliding", "palpations": 7},
+    {"strategy": "random", "palpation": "sliding", "palpations": 7},
 )
 
 

@@ -63,7 +63,8 @@ def per_scene_lead(rows: list[dict]) -> list[dict]:
 
 
 COLOURS = {("active", "discrete"): "tab:blue", ("active", "sliding"): "tab:red",
-           ("raster", "discrete"): "tab:orange", ("raster", "sliding"): "tab:purple", ("random", "discrete"): "tab:green"}
+           ("raster", "discrete"): "tab:orange", ("raster", "sliding"): "tab:purple", ("random", "discrete"): "tab:green",
+           ("random", "sliding"): "tab:olive"}
 
 
 def plot(rows: list[dict], summary: list[dict], path) -> None:
@@ -78,7 +79,8 @@ def plot(rows: list[dict], summary: list[dict], path) -> None:
         _panel(ax, rows, summary, metric, flag)
         ax.set_xlabel("robot time per scan (s)")
         ax.set_ylabel(label)
-    axes[1].set_yscale("log")
+    if any(isinstance(r["center_error_mm"], (int, float)) and r["center_error_mm"] > 0 for r in rows):
+        axes[1].set_yscale("log")  # (on scenes without lumps there is no centre error to scale)
     axes[0].legend(fontsize=8, loc="lower right")
     fig.suptitle(f"speed for accuracy: {len(rows)} scans, {len({r['scene'] for r in rows})} scenes; "
                  "small dots = runs, big = setting medians, line = Pareto front")

@@ -1,0 +1,122 @@
+"""Sliding palpation through `palpd serve` (a real process, driven with pyzmq and JSON, virtual time): a
+sliding scan journals, records and publishes like a discrete one; a stop mid-slide lifts the probe off the
+tissue where it is, and an e-stop mid-slide moves it no further along the path."""
+import json
+import math
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from daemon_client import Daemon, receive
+from mcap_official import read_closed
+from palpd.bus.messages import EVENT_MODELS
+from palpd.daemon.mcap import read_messages
+from palpd.daemon.session import read_journal
+from test_daemon import collect_until_done
+
+PAPER_LUMP_MM = (7.5, -4.0)  # config/scenes/paper.toml
+IN_TISSUE_MM = -0.5  # the tip below the nominal surface (sliding holds it 1.5-3.5 mm in)
+SLOW_MM_S, ROW_MM = 4.0, 60.0
+
+
+def test_a_sliding_scan_set_in_the_config_runs_through_the_daemon(tmp_path):
+    daemon = Daemon(tmp_path, env={"PALPD_PALPATION__MODE": json.dumps("sliding")})  # refused before issue 15b
+    try:
+        daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
+        subscriber = daemon.subscriber()
+        reply = daemon.call("scan.start", {"strategy": "active", "max_palpations": 2})  # 2 paths
+        assert reply["ok"] and reply["expected_total"] == 2, reply
+        seen = collect_until_done(subscriber)
+        status = daemon.wait_for(lambda s: s["state"] == "ready", what="scan end")
+    finally:
+        daemon.close()
+    for topic, payloads in seen.items():
+        for payload in payloads:
+            EVENT_MODELS[topic].model_validate(payload)
+    final = seen["estimate"][-1]
+    readings = seen["stiffness"]
+    assert len(readings) >= 10 and final["points"] == len(readings)  # a reading per modulation cycle
+    (lump,) = final["lumps"]  # two paths place it roughly (its centre sd ~0.5 mm); the learner goes on from there
+    assert math.dist(lump["center_mm"], PAPER_LUMP_MM) < 2.0, lump
+    session = daemon.state_dir / "sessions" / status["session"]
+    meta = json.loads((session / "session.json").read_text())
+    assert meta["status"] == "finished" and meta["scan"]["palpation"] == "sliding"
+    entries = read_journal(session / "journal.jsonl")
+    assert len(entries) == status["palpations"] == len(seen["palpation"])
+    assert {e["palpation"] for e in entries} == {"sliding"} and {e["path"] for e in entries} == {0, 1}
+    recorded = read_messages(session / "recording-1.mcap")
+    assert [p for t, p in recorded if t == "estimate"][-1] == final
+    replayed = subprocess.run([sys.executable, "-m", "palpd", "replay", str(session)], capture_output=True, text=True)
+    assert replayed.returncode == 0 and "the recorded estimate is reproduced" in replayed.stdout, replayed.stdout
+
+
+def samples_of(recording) -> list[dict]:
+    return [p for t, p in read_messages(recording) if t == "samples"] if recording.exists() else []
+
+
+def in_tissue(sample: dict) -> bool:
+    return sample["tip_mm"][2] < IN_TISSUE_MM
+
+
+def wait_until_sliding(recording, contact_s: float = 1.5, timeout_s: float = 30.0) -> None:
+    """The recorded samples (flushed each second) show the probe in the tissue for contact_s of robot time:
+    pressed in (0.5 s) and sliding."""
+    give_up = time.monotonic() + timeout_s
+    while time.monotonic() < give_up:
+        touching = [p["t"] for p in samples_of(recording) if in_tissue(p)]
+        if touching and touching[-1] - touching[0] > contact_s:
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"no slide under way in {recording}")
+
+
+def last_slide(samples: list[dict]) -> list[dict]:
+    """The last stretch of samples with the tip in the tissue."""
+    last = max(i for i, p in enumerate(samples) if in_tissue(p))
+    first = last
+    while first > 0 and in_tissue(samples[first - 1]):
+        first -= 1
+    return samples[first:last + 1]
+
+
+def test_estop_and_sigterm_mid_slide_never_drag_the_probe_along_the_tissue(tmp_path):
+    # 4 mm/s: a 60 mm row takes 15 s of robot time, so each stop lands mid-slide
+    daemon = Daemon(tmp_path, env={"PALPD_PALPATION__SLIDING_SPEED_MM_S": str(SLOW_MM_S)})
+    sessions = tmp_path / "state" / "sessions"
+    try:
+        daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
+        faults = daemon.subscriber("fault")
+        assert daemon.call("scan.start", {"strategy": "raster", "palpation": "sliding", "max_palpations": 3})["ok"]
+        (session,) = sessions.iterdir()
+        wait_until_sliding(session / "recording-1.mcap")
+        assert daemon.call("estop")["ok"]  # category 0: the current is cut where the probe is
+        assert receive(faults)[1]["code"] == "estop"
+        daemon.wait_for(lambda s: s["state"] == "fault", what="fault")
+        assert daemon.call("reset")["ok"]
+        daemon.wait_for(lambda s: s["state"] == "ready", what="home after the reset")
+        assert daemon.call("scan.start", {"resume": True})["ok"]
+        wait_until_sliding(session / "recording-2.mcap")
+        daemon.signal(signal.SIGTERM)
+        assert daemon.wait() == 0, daemon.process.stderr.read()
+    finally:
+        daemon.close()
+    cut = last_slide(samples_of(session / "recording-1.mcap"))  # the e-stop ended the run (and its recording)
+    assert cut[-1]["t"] - cut[0]["t"] > 1.5 and math.dist(cut[-1]["tip_mm"][:2], cut[0]["tip_mm"][:2]) < ROW_MM / 2
+    resumed = samples_of(session / "recording-2.mcap")
+    assert resumed[0]["tip_mm"][2] > 50.0  # the reset took the arm up off the tissue and home
+
+    slid = last_slide(resumed)
+    assert slid[-1]["t"] - slid[0]["t"] > 1.5  # SIGTERM came mid-slide...
+    assert math.dist(slid[-1]["tip_mm"][:2], slid[0]["tip_mm"][:2]) < ROW_MM / 2  # ...and the row went no further
+    leaving = slid[-100:]  # the lift at 20 mm/s: straight up where it was (sliding on, 0.1 s would be 0.4 mm
+    assert leaving[0]["tip_mm"][2] < leaving[-1]["tip_mm"][2] - 1.0  # along the row, the x axis)
+    assert max(abs(p["tip_mm"][0] - leaving[-1]["tip_mm"][0]) for p in leaving) < 0.15
+    assert resumed[-1]["tip_mm"][2] > 50.0 and abs(resumed[-1]["normal_force_n"]) < 0.05  # parked at home
+    messages = [(t, p) for t, p, _ in read_closed(session / "recording-2.mcap")["messages"]]
+    assert [p["code"] for t, p in messages if t == "fault"] == []  # a gentle stop, not a fault
+    entries = read_journal(session / "journal.jsonl")
+    assert entries and {e["path"] for e in entries} == {0}  # what the stopped row read is kept
+    assert json.loads((session / "session.json").read_text())["status"] == "unfinished"  # resumable
