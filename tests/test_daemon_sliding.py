@@ -19,7 +19,7 @@ from test_daemon import collect_until_done
 
 PAPER_LUMP_MM = (7.5, -4.0)  # config/scenes/paper.toml
 IN_TISSUE_MM = -0.5  # the tip below the nominal surface (sliding holds it 1.5-3.5 mm in)
-SLOW_MM_S, ROW_MM = 4.0, 60.0
+SLOW_MM_S, ROW_MM = 1.0, 60.0
 
 
 def test_a_sliding_scan_set_in_the_config_runs_through_the_daemon(tmp_path):
@@ -83,7 +83,8 @@ def last_slide(samples: list[dict]) -> list[dict]:
 
 
 def test_estop_and_sigterm_mid_slide_never_drag_the_probe_along_the_tissue(tmp_path):
-    # 4 mm/s: a 60 mm row takes 15 s of robot time, so each stop lands mid-slide
+    # 1 mm/s: a 60 mm row takes 60 s of robot time (seconds of wall time even in virtual time, on a busy
+    # machine too), so each stop lands mid-slide, never after the row
     daemon = Daemon(tmp_path, env={"PALPD_PALPATION__SLIDING_SPEED_MM_S": str(SLOW_MM_S)})
     sessions = tmp_path / "state" / "sessions"
     try:
@@ -111,9 +112,9 @@ def test_estop_and_sigterm_mid_slide_never_drag_the_probe_along_the_tissue(tmp_p
     slid = last_slide(resumed)
     assert slid[-1]["t"] - slid[0]["t"] > 1.5  # SIGTERM came mid-slide...
     assert math.dist(slid[-1]["tip_mm"][:2], slid[0]["tip_mm"][:2]) < ROW_MM / 2  # ...and the row went no further
-    leaving = slid[-100:]  # the lift at 20 mm/s: straight up where it was (sliding on, 0.1 s would be 0.4 mm
-    assert leaving[0]["tip_mm"][2] < leaving[-1]["tip_mm"][2] - 1.0  # along the row, the x axis)
-    assert max(abs(p["tip_mm"][0] - leaving[-1]["tip_mm"][0]) for p in leaving) < 0.15
+    leaving = slid[-100:]  # the lift at 20 mm/s: straight up where it was (sliding on, 0.1 s would be 0.1 mm
+    assert leaving[0]["tip_mm"][2] < leaving[-1]["tip_mm"][2] - 1.0  # along the row, the x axis; 0.04 measured)
+    assert max(abs(p["tip_mm"][0] - leaving[-1]["tip_mm"][0]) for p in leaving) < 0.08
     assert resumed[-1]["tip_mm"][2] > 50.0 and abs(resumed[-1]["normal_force_n"]) < 0.05  # parked at home
     messages = [(t, p) for t, p, _ in read_closed(session / "recording-2.mcap")["messages"]]
     assert [p["code"] for t, p in messages if t == "fault"] == []  # a gentle stop, not a fault
