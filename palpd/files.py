@@ -8,10 +8,15 @@ from pathlib import Path
 from palpd.errors import PalpdError
 
 
-def check_writable(path: str | Path) -> None:
-    """Fail now, not after a long scan, when `path` could not be written later: its directory is made
-    (as writing would) and must be writable, and the path itself must not be a directory."""
-    path = Path(path)
+def check_writable(*paths: str | Path | None) -> None:
+    """Fail now, not after a long scan, when one of `paths` (None: not asked for) could not be written later."""
+    for path in paths:
+        if path is not None:
+            _check_writable(Path(path))
+
+
+def _check_writable(path: Path) -> None:
+    """Its directory is made (as writing would) and must be writable; the path must not be a directory."""
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except FileExistsError:

@@ -42,9 +42,7 @@ def run(args) -> int:
     # Heavy imports (scipy.stats, scikit-learn, matplotlib) only once arguments, config and scene are known good.
     from palpd.files import check_writable, write_json
 
-    for path in (args.report, args.plot):
-        if path:
-            check_writable(path)  # before the scan: its result must not be lost to a typo in a path
+    check_writable(args.report, args.plot)  # before the scan: its result must not be lost to a typo in a path
 
     def started(planner) -> None:
         p = settings.palpation

@@ -21,19 +21,15 @@ def run(args) -> int:
     from palpd.datafile import read_dataset
     from palpd.errors import UsageError
     from palpd.files import check_writable, write_json
-    from palpd.study.inputs import check_test, check_training
+    from palpd.study.inputs import check_study
 
     if not (math.isfinite(args.svm_c) and args.svm_c > 0):
         raise UsageError("--svm-c must be a positive number")
     weights = _weights(args.centroid_weights)
     train = read_dataset(args.train)
     tests = [read_dataset(path) for path in args.test]
-    check_training(train)
-    for test in tests:
-        check_test(test)
-    for path in (args.report, args.plot):
-        if path:
-            check_writable(path)
+    check_study(train, tests)
+    check_writable(args.report, args.plot)
     # Only now scikit-learn (the methods): a bad argument or file above is a one-line error at once.
     from palpd.study.methods import Options
     from palpd.study.run import run_study

@@ -9,6 +9,12 @@ from palpd.errors import PalpdError
 MIN_POINTS = 4  # two per class at least, for a classifier, and k-means needs more points than clusters
 
 
+def check_study(train, tests) -> None:
+    check_training(train)
+    for test in tests:
+        check_test(test)
+
+
 def check_training(train) -> None:
     if train.tumor is None:
         raise PalpdError(f"{train.path}: the training set has no tumor column (labels 0/1 are needed to train)")

@@ -6,13 +6,11 @@ from pathlib import Path
 import numpy as np
 
 from palpd.study.classifiers import ALGORITHMS
-from palpd.study.inputs import check_test, check_training
+from palpd.study.inputs import check_study
 from palpd.study.methods import METHODS, RUNNERS, Options
 
 def run_study(train, tests, options: Options = Options(), methods=METHODS) -> list[dict]:
-    check_training(train)
-    for test in tests:
-        check_test(test)
+    check_study(train, tests)
     results = []
     for method in methods:
         for algorithm in ([None] if method == "kmeans" else ALGORITHMS):
