@@ -170,7 +170,7 @@ class LearnerSettings(_Section):
     coverage_mm: Positive = 18.0  # done only once every spot is this close to a reading: no lump left unfelt
     # ...and a `none` verdict only once every spot is this close (at most coverage_mm): a sharp-edged lump is
     # felt only within its radius, so `none` rules out lumps of this radius and wider (the seed paper's is 10 mm)
-    none_coverage_mm: Positive = 10.0
+    none_coverage_mm: Positive = 11.0
     length_scale_mm: tuple[Positive, Positive] = (1.5, 8.0)  # bounds of the free-form map's kernel length scale
     refit_growth: Annotated[float, Field(gt=1.0)] = 1.3  # relearn that kernel when the data grew this much
     reading_noise_floor: Annotated[float, Field(gt=0, le=1)] = 0.01  # readings repeat no better than this fraction

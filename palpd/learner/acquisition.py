@@ -1,4 +1,4 @@
-"""Where to palpate: a small space-filling first design, then where a reading teaches the most.
+"""Where to palpate once readings come in (the first design is design.py's): where a reading teaches the most.
 
 - While the hypotheses disagree (the chosen one's weight is below the
   confidence asked for), where their predictions differ most relative to the
@@ -22,29 +22,6 @@ import numpy as np
 
 from palpd.learner import shapes
 from palpd.learner.describe import quantities
-
-
-def initial_design(size_mm: tuple[float, float], count: int, seed: int) -> list[tuple[float, float]]:
-    """`count` scrambled Halton points over the area, in a short nearest-neighbour tour."""
-    if count <= 0:
-        return []
-    half = np.asarray(size_mm, dtype=float) / 2.0
-    from scipy.stats import qmc  # here: scipy.stats takes half a second to import, for one design per scan
-
-    unit = qmc.Halton(d=2, scramble=True, seed=seed).random(count)
-    points = qmc.scale(unit, -half, half)
-    return _tour(points, start=np.zeros(2))
-
-
-def _tour(points: np.ndarray, start: np.ndarray) -> list[tuple[float, float]]:
-    left = list(range(len(points)))
-    here, order = start, []
-    while left:
-        nearest = min(left, key=lambda i: float(np.hypot(*(points[i] - here))))
-        left.remove(nearest)
-        here = points[nearest]
-        order.append((float(here[0]), float(here[1])))
-    return order
 
 
 def moments(fit, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

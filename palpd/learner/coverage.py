@@ -19,6 +19,8 @@ import numpy as np
 
 from palpd.learner import shapes
 
+JOINT_SIGMA = 3.0  # readings around a hole this far above the chosen model together (mean shift, in sd): a lump there?
+HOLE_FRACTION = 0.75  # of the `none` reach: a spot this far from every reading is a hole a lump can hide in
 CONFIRM_RHO = 0.6
 EDGE_LEVEL = math.log(9.0)  # the edge band: where the lump's profile is between 10 % and 90 % of its height
 MAX_GAP_RAD = 2.0 * math.pi / 3.0  # no third of a turn of edge unread
@@ -55,6 +57,25 @@ def uncovered_edge(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float) -> 
         if gaps[widest] >= MAX_GAP_RAD:
             return _boundary_point(params, ellipse, phases[widest] + 0.5 * gaps[widest])
     return None
+
+
+def hidden_lump_spot(excess: np.ndarray, readings_xy: np.ndarray, readings: "Readings",
+                     reach_mm: float) -> np.ndarray | None:
+    """Where an unseen lump would sit, or None. A lump in a hole between readings raises each of them a
+    little (a 6 mm lump 10.6 mm from four readings: 1.7-2.8 sd each, too little for a hypothesis of its
+    own, which wants one reading 3 sd off, evidence.supported), and all of them together: at each hole (a
+    coverage cell at least HOLE_FRACTION of `reach_mm` from every reading), the readings within `reach_mm`
+    are tested for a common rise over the chosen model, Σz/√n; where that is a JOINT_SIGMA surprise, the
+    hole with the largest is probed."""
+    holes = readings.distance_mm >= HOLE_FRACTION * reach_mm
+    if not holes.any() or len(excess) == 0:
+        return None
+    cells = readings.cells_xy[holes]
+    near = np.hypot(cells[:, None, 0] - readings_xy[None, :, 0], cells[:, None, 1] - readings_xy[None, :, 1]) <= reach_mm
+    count = near.sum(axis=1)
+    joint = (near @ excess) / np.sqrt(np.maximum(count, 1))
+    best = int(np.argmax(joint))
+    return cells[best] if joint[best] >= JOINT_SIGMA else None
 
 
 def _lumps(fit) -> list[np.ndarray]:

@@ -69,6 +69,8 @@ class Decision:
         the tolerance."""
         if not self._choice_made() or self._unexplored() is not None or self._unpinned() is not None:
             return False
+        if self._hidden_lump() is not None:
+            return False
         tolerance = self.settings.tolerance_mm
         return all(_sds(lump) <= tolerance for lump in self.lumps())
 
@@ -80,6 +82,28 @@ class Decision:
         if self.choice is not None and self.choice.chosen == "none":
             reach = min(reach, self.settings.none_coverage_mm)
         return self.coverage.farthest_beyond(reach)
+
+    def _covering_spot(self, unexplored: tuple[float, float]) -> tuple[float, float]:
+        """The covering lattice's point nearest an unexplored spot (its own cell's: within the `none` reach of
+        it), unless a probe was made there: the lattice covers the tissue with the fewest readings."""
+        near = self.lattice[np.argmin(np.hypot(*(self.lattice - np.asarray(unexplored)).T))]
+        if min(math.dist(near, probe) for probe in self.probed) < self.settings.min_spacing_mm:
+            return unexplored
+        return float(near[0]), float(near[1])
+
+    def _hidden_lump(self) -> np.ndarray | None:
+        """Where readings above the chosen model hint together at a lump no hypothesis has (coverage.py), or None."""
+        if "hidden" not in self._cache:
+            fit = self.chosen_fit()
+            self._cache["hidden"] = None if fit is None else coverage.hidden_lump_spot(
+                self._excess_over(fit), self.obs.xy[self.obs.exact], self.coverage, self.settings.none_coverage_mm)
+        return self._cache["hidden"]
+
+    def _excess_over(self, fit: Fit) -> np.ndarray:
+        """Each exact reading's excess over the fit, in units of its own noise and the fit's σ_w (never below the floor)."""
+        exact = self.obs.exact
+        f, _ = shapes.evaluate(fit.family, fit.theta, self.obs.xy[exact], jacobian=False)
+        return (self.obs.y[exact] - f) / np.sqrt(self.obs.sd[exact] ** 2 + max(fit.noise_sd, self.noise_floor) ** 2)
 
     def _unpinned(self) -> np.ndarray | None:
         """Where a lump of the chosen parametric model still needs a reading to be pinned down, or None
@@ -134,7 +158,10 @@ class Decision:
             return None
         unexplored = self._unexplored() if self._choice_made() else None
         if unexplored is not None:  # all else is decided: look where nothing was read yet
-            return unexplored
+            return self._covering_spot(unexplored)
+        hidden = self._hidden_lump() if self._choice_made() else None
+        if hidden is not None:  # readings hint at a lump no hypothesis has yet: look where it would be
+            return float(hidden[0]), float(hidden[1])
         cells = self._candidates()
         score = self._score(cells)
         here = self.probed[-1] if self.probed else None

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from palpd.learner import acquisition, coverage, lumps as free_form, maps
+from palpd.learner import acquisition, coverage, design, lumps as free_form, maps
 from palpd.learner.decision import Decision
 from palpd.learner.gp import Hyper, IncrementalGP, fit_hyper
 from palpd.learner.hypotheses import Hypotheses
@@ -51,7 +51,9 @@ class Learner(Decision):
                                                     scale_mm=0.5 * max(size_mm)))
         self.obs = Observations()
         self.hypotheses = Hypotheses(size_mm, min_contrast, self.noise_floor)
-        self.design = acquisition.initial_design(size_mm, settings.initial_points, seed)
+        # the covering lattice at the `none` reach: the first design is part of it, the rest fills holes
+        self.lattice = design.covering_lattice(size_mm, settings.none_coverage_mm)
+        self.design = design.first_design(size_mm, self.lattice, settings.initial_points, seed)
         self.blocked = np.zeros(len(self.grid_xy), dtype=bool)
         self.coverage = coverage.Readings(self.grid_xy[self._candidates(COVERAGE_STEP_MM)], settings.min_spacing_mm)
         self.probed: list[tuple[float, float]] = []
