@@ -23,6 +23,7 @@ MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model'
 MIN_WEIGHT = 0.01  # hypotheses below this weight are left out of the disagreement
 MAX_RIVALS = 4
 CANDIDATE_STRIDE_MM = 1.0  # probes are chosen on a lattice at least this fine
+PREDICTED_SIGMA = 3.0  # never stop right after a reading the chosen fit did not predict within this many sd
 
 
 class Decision:
@@ -69,7 +70,7 @@ class Decision:
         the tolerance."""
         if not self._choice_made() or self._unexplored() is not None or self._unpinned() is not None:
             return False
-        if self._hidden_lump() is not None:
+        if self._hidden_lump() is not None or abs(self.surprise_sd) > PREDICTED_SIGMA:
             return False
         tolerance = self.settings.tolerance_mm
         return all(_sds(lump) <= tolerance for lump in self.lumps())
@@ -98,6 +99,17 @@ class Decision:
             self._cache["hidden"] = None if fit is None else coverage.hidden_lump_spot(
                 self._excess_over(fit), self.obs.xy[self.obs.exact], self.coverage, self.settings.none_coverage_mm)
         return self._cache["hidden"]
+
+    def _surprise_of_last(self) -> float:
+        """How many sd the newest reading lies from the chosen fit's prediction there, made before it (its
+        parameters' checked variance, the reading's own and the fit's σ_w): a fit whose sds are honest
+        predicts its next reading; one that does not is not pinned, however narrow its Laplace sd."""
+        fit = None if self.choice is None else self.chosen_fit()
+        if fit is None or not self.obs.exact[-1]:
+            return 0.0
+        mean, var, _ = acquisition.moments(fit, self.obs.xy[-1:])
+        noise = self.obs.sd[-1] ** 2 + max(fit.noise_sd, self.noise_floor) ** 2
+        return float((self.obs.y[-1] - mean[0]) / math.sqrt(var[0] + noise))
 
     def _excess_over(self, fit: Fit) -> np.ndarray:
         """Each exact reading's excess over the fit, in units of its own noise and the fit's σ_w (never below the floor)."""
@@ -130,9 +142,11 @@ class Decision:
     def _choice_made(self) -> bool:
         """Enough readings, a confident choice, and the chosen hypothesis explains them to their precision
         (a model that needs far more noise than readings have is the best of a bad lot, not an answer)."""
-        if self.choice is None or self.choice.weight < self.settings.confidence or not self._enough_spots():
-            return False
-        return self._adequate()
+        return self._confident() and self._adequate()
+
+    def _confident(self) -> bool:
+        """Enough readings at distinct spots, and one hypothesis weighs at least `confidence`."""
+        return self.choice is not None and self.choice.weight >= self.settings.confidence and self._enough_spots()
 
     def _enough_spots(self) -> bool:
         """MIN_READINGS readings at distinct spots (at least the probe spacing apart): the same spot
@@ -156,10 +170,11 @@ class Decision:
             return self.design[self.points]
         if self.decided():
             return None
-        unexplored = self._unexplored() if self._choice_made() else None
+        chosen = self._confident()  # adequate or not: what it leaves unexplained may lie where nothing was read
+        unexplored = self._unexplored() if chosen else None
         if unexplored is not None:  # all else is decided: look where nothing was read yet
             return self._covering_spot(unexplored)
-        hidden = self._hidden_lump() if self._choice_made() else None
+        hidden = self._hidden_lump() if chosen else None
         if hidden is not None:  # readings hint at a lump no hypothesis has yet: look where it would be
             return float(hidden[0]), float(hidden[1])
         cells = self._candidates()

@@ -58,6 +58,7 @@ class Learner(Decision):
         self.coverage = coverage.Readings(self.grid_xy[self._candidates(COVERAGE_STEP_MM)], settings.min_spacing_mm)
         self.probed: list[tuple[float, float]] = []
         self.choice = None
+        self.surprise_sd = 0.0  # how far the last reading fell from what the chosen fit predicted there
         self._fitted_at = 0
         self._pass = None  # the pass of refits under way (many readings: one step per update)
         self._regions = []
@@ -79,6 +80,7 @@ class Learner(Decision):
         if not self.obs.add(xy, outcome, value, sd_n_per_mm if outcome == "fit" else 0.0):
             return
         self.coverage.add(xy)
+        self.surprise_sd = self._surprise_of_last()
         own_sd = self.obs.sd[-1] if self.obs.kind[-1] == EXACT else CENSORED_SD
         self.gp.add(xy, self.obs.y[-1], own_sd**2)
         if self._refit_pays():
