@@ -164,12 +164,13 @@ class LearnerSettings(_Section):
     confidence: Annotated[float, Field(gt=0.5, lt=1.0)] = 0.9  # stop when the chosen hypothesis has this weight...
     tolerance_mm: Annotated[float, Field(gt=0, le=100)] = 0.5  # ...and every centre/radius sd is at most this
     max_palpations: Annotated[int, Field(ge=1, le=10000)] = 40
-    initial_points: Annotated[int, Field(ge=0, le=1000)] = 8  # space-filling first design
+    initial_points: Annotated[int, Field(ge=0, le=1000)] = 8  # first design: points of the covering lattice
     grid_points: Annotated[int, Field(ge=11, le=401)] = 121  # candidate grid, per side
     min_spacing_mm: NonNegative = 1.5
     coverage_mm: Positive = 18.0  # done only once every spot is this close to a reading: no lump left unfelt
-    # ...and a `none` verdict only once every spot is this close (at most coverage_mm): a sharp-edged lump is
-    # felt only within its radius, so `none` rules out lumps of this radius and wider (the seed paper's is 10 mm)
+    # ...and a `none` verdict only once every spot is this close (at most coverage_mm; the covering lattice's reach):
+    # a sharp-edged lump is felt only a little beyond its radius (a 10 mm lump of sharpness 40 at 2 % of its height
+    # 11 mm from its centre), so `none` rules out lumps of 10 mm radius and wider
     none_coverage_mm: Positive = 11.0
     length_scale_mm: tuple[Positive, Positive] = (1.5, 8.0)  # bounds of the free-form map's kernel length scale
     refit_growth: Annotated[float, Field(gt=1.0)] = 1.3  # relearn that kernel when the data grew this much

@@ -29,11 +29,11 @@ def scans() -> dict:
     return out
 
 
-def test_plain_tissue_is_none_once_every_spot_is_within_10_mm_of_a_reading(scans):
+def test_plain_tissue_is_none_within_20_palpations_once_every_spot_is_within_11_mm_of_a_reading(scans):
     report, m = scans["no-lump"]
     assert report["faults"] == [] and report["verdict"] == "none" and report["lumps"] == []
     assert report["model"]["chosen"] == "none" and report["model"]["weight"] >= 0.9
-    assert report["palpations"] <= 32 and m["false_lumps"] == 0  # 29 (18 mm coverage: 10, and a 10 mm lump could hide)
+    assert report["palpations"] <= 20 and m["false_lumps"] == 0  # 17: the covering lattice's 16 and one more
 
 
 @pytest.mark.parametrize("name, chosen", [("elongated-lump", "ellipse:1"), ("deep-lump", "circles:1")])

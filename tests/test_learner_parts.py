@@ -5,6 +5,7 @@ import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings as hsettings, strategies as st
 
 from palpd import metrics
 from palpd.learner.gp import Hyper, IncrementalGP
@@ -88,3 +89,50 @@ def test_the_learner_imports_nothing_above_it():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     loaded = set(eval(out))  # noqa: S307 (our own print of a list of names)
     assert not loaded & {"palpd.scan", "palpd.dataset", "palpd.bench", "palpd.daemon", "palpd.commands"}, loaded
+
+
+@hsettings(max_examples=25, deadline=None)
+@given(width_mm=st.floats(5.0, 150.0), height_mm=st.floats(5.0, 150.0), share=st.floats(0.08, 1.0),
+       seed=st.integers(0, 7))
+def test_the_covering_lattice_leaves_no_spot_beyond_its_reach(width_mm, height_mm, share, seed):
+    from palpd.learner.design import CHECK_STEP_MM, covering_lattice, lattice_order
+
+    reach_mm = share * max(width_mm, height_mm)
+    lattice = covering_lattice((width_mm, height_mm), reach_mm)
+    half = np.array([width_mm, height_mm]) / 2.0
+    spots = np.vstack([np.random.default_rng(seed).uniform(-half, half, (3000, 2)), half * [[1, 1], [1, -1], [-1, 1], [-1, -1]]])
+    nearest = np.min(np.hypot(spots[:, None, 0] - lattice[None, :, 0], spots[:, None, 1] - lattice[None, :, 1]), 1)
+    assert nearest.max() <= reach_mm + CHECK_STEP_MM / math.sqrt(2.0)  # checked on a grid that fine
+    assert np.all(np.abs(lattice) <= half + 1e-9)
+    # never much more than the hexagonal lattice's density (the densest covering: 2.6 r² per point)
+    assert len(lattice) <= 2.0 * width_mm * height_mm / (2.598 * reach_mm**2) + 2.0 * (width_mm + height_mm) / reach_mm + 1
+    order = np.array(lattice_order(lattice, seed))
+    assert len(order) == len(lattice) and len(np.unique(np.round(np.abs(order), 6), axis=0)) == len(np.unique(np.round(np.abs(lattice), 6), axis=0))
+
+
+def test_the_covering_lattice_of_a_60_mm_square_at_11_mm_is_16_points_its_first_half_spread():
+    from palpd.learner.design import covering_lattice, lattice_order
+
+    lattice = covering_lattice((60.0, 60.0), 11.0)
+    assert len(lattice) == 16 and len(covering_lattice((60.0, 60.0), 10.0)) == 18  # hexagonal there
+    first = np.array(lattice_order(lattice, 0)[:8])
+    assert np.min([math.dist(a, b) for i, a in enumerate(first) for b in first[i + 1:]]) >= 20.0
+
+
+def test_readings_faintly_above_the_model_around_a_hole_send_the_next_probe_into_it():
+    """Four readings each 2 sd above the chosen model around an unread spot: no one of them is a lump
+    (evidence.supported), together they are (4 × 2 / √4 = 4 sd); one such reading alone, or readings below, are not."""
+    from palpd.learner.coverage import Readings, hidden_lump_spot
+
+    xs = np.arange(-30.0, 30.01, 2.0)
+    gx, gy = np.meshgrid(xs, xs)
+    readings_xy = np.array([[x, y] for x in (-22.5, -7.5, 7.5, 22.5) for y in (-22.5, -7.5, 7.5, 22.5)])
+    readings = Readings(np.column_stack([gx.ravel(), gy.ravel()]), 1.5)
+    for xy in readings_xy:
+        readings.add(xy)
+    around = np.hypot(*(readings_xy - [-15.0, 15.0]).T) < 11.0
+    assert np.allclose(hidden_lump_spot(np.where(around, 2.0, 0.0), readings_xy, readings, 11.0), [-15.0, 15.0], atol=1.0)
+    assert hidden_lump_spot(np.where(around, -2.0, 0.0), readings_xy, readings, 11.0) is None
+    one = np.zeros(len(readings_xy))
+    one[np.flatnonzero(around)[0]] = 2.0
+    assert hidden_lump_spot(one, readings_xy, readings, 11.0) is None
