@@ -34,7 +34,7 @@ def covering_lattice(size_mm: tuple[float, float], reach_mm: float) -> np.ndarra
     """The fewest points (n × 2, centred frame, rows in order) found among staggered-row lattices over the
     rectangle that leave no spot of it farther than `reach_mm` (rows along x or along y, whichever needs fewer)."""
     width, height = float(size_mm[0]), float(size_mm[1])
-    return _covering(round(width, 6), round(height, 6), round(float(reach_mm), 6)).copy()
+    return _covering(width, height, float(reach_mm)).copy()
 
 
 @functools.lru_cache(maxsize=16)
