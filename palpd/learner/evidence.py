@@ -55,6 +55,7 @@ class Fit:
     log_det: float  # log det of the curvature then
     work: int = 0  # what the fit cost, in evaluated residual entries (deterministic, unlike a clock)
     checked: bool = False  # cov checked against the posterior along its widest directions (posterior.py)
+    evidence_checked: bool = False  # log_evidence with the posterior's volume measured (posterior.py)
 
     @property
     def name(self) -> str:

@@ -117,7 +117,7 @@ class Learner(Decision):
             if n % max(1, n // REFITS_PER_DOUBLING) == 0 and next(self._pass or iter(()), None) is None:
                 self._pass = self.hypotheses.refits(self.obs, self._find_regions(), self._tissue_log(), LIGHT_STARTS)
                 next(self._pass)
-        self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None)
+        self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None, self.obs)
 
     def _tissue_log(self) -> float:
         return math.log(self._levels().tissue_n_per_mm)
