@@ -60,6 +60,7 @@ class Hypotheses:
         self.fits: dict[str, Fit] = {}
         self.raw: dict[str, Fit] = {}  # each checked fit as refitted: its Laplace covariance (where to probe)
         self.weights: dict[str, float] = {}  # of the last choice: who is worth a fresh look when surprised
+        self.unfelt_centre: np.ndarray | None = None  # of the last choice (_unfelt_centre)
         self.volumes: dict[str, _Volume] = {}  # each hypothesis's last volume check (posterior.log_volume_ratio)
 
     def priors(self, obs: Observations) -> Priors:
@@ -81,9 +82,9 @@ class Hypotheses:
         self.fits["none"] = self._fit(shapes.Family("circles", 0, priors.scale_mm), obs, priors, list, max_starts)
         yield self.fits["none"].work
         best_k = 0
-        for k in range(1, MAX_LUMPS + 1):  # one lump more while the last fit leaves a reading unexplained
-            prev = self.fits[self._name_of(k - 1)]
-            if not self._unexplained(prev, obs).any():
+        for k in range(1, MAX_LUMPS + 1):  # one lump more while the last fit leaves a reading unexplained,
+            prev = self.fits[self._name_of(k - 1)]  # and always one beyond the best (where they disagree is
+            if k > best_k + 1 and not self._unexplained(prev, obs).any():  # worth a look)
                 break
             family = shapes.Family("circles", k, priors.scale_mm)
             fit = self._fit(family, obs, priors, lambda: self._circle_starts(prev, obs, regions, k, priors),
@@ -237,12 +238,26 @@ class Hypotheses:
             candidates[name] = self._evidence_checked(name, obs).log_evidence
             best = max(best, candidates[name])
         names = sorted(candidates, key=lambda m: -candidates[m])
+        self.unfelt_centre = self._unfelt_centre(candidates[names[0]], obs)
         top = candidates[names[0]]
         raw = {m: math.exp(candidates[m] - top) for m in names}
         total = sum(raw.values())
         weights = {m: v / total for m, v in raw.items()}
         self.weights = weights
         return Choice(names[0], weights[names[0]], names[1] if len(names) > 1 else None, weights)
+
+    def _unfelt_centre(self, chosen_log_evidence: float, obs: Observations) -> np.ndarray | None:
+        """The centre of a lump no reading feels yet, in a hypothesis the evidence prefers to the chosen
+        one (checked): the readings ask for that lump, and one reading over it says whether it is there."""
+        for name, fit in sorted(self.fits.items(), key=lambda kv: -kv[1].log_evidence):
+            if fit.log_evidence <= chosen_log_evidence:
+                return None
+            if fit.supported or self._evidence_checked(name, obs).log_evidence <= chosen_log_evidence:
+                continue
+            fit = self.fits[name]
+            j = evidence.unfelt(fit.family, fit.theta, obs, self.noise_floor)[0]
+            return fit.theta[fit.family.lump_slice(j)][:2]
+        return None
 
     def _beats(self, name: str, best: str, obs: Observations) -> bool:
         """`name` has more evidence than `best`, both checked (Laplace first: it bounds the checked one)."""

@@ -31,6 +31,7 @@ class Map:
     std: np.ndarray     # (ny, nx) posterior sd
     tau: np.ndarray     # (ny, nx) threshold
     length_mm: float    # kernel length scale: how far one probe informs
+    tissue_tau: float   # the global τ (min_contrast above the tissue level), where no region's own holds
 
     @property
     def cell_mm(self) -> float:
@@ -79,7 +80,7 @@ def _stretch(cov: np.ndarray) -> tuple[float, float]:
 
 def _backed_regions(m: Map, stiff_xy: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
     above = m.mean > m.tau
-    if _surrounds_the_tissue(above):
+    if _surrounds_the_tissue(m.mean > m.tissue_tau):  # stiffer than the tissue at all, all along the edge
         return np.zeros(above.shape, dtype=int), []
     labels, count = ndimage.label(above, EIGHT_CONNECTED)
     supported = _supported_labels(m, labels, stiff_xy)

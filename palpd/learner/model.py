@@ -147,7 +147,7 @@ class Learner(Decision):
         exact = self.obs.exact
         tau = tau_field(mean, lv, reach_cells, self._cells_of(self.obs.xy[exact]), np.exp(self.obs.y[exact]))
         self._cache["map"] = free_form.Map(self.xs, self.ys, mean, mean * self.gp.std().reshape(shape), tau,
-                                           self.gp.hyper.length_mm)
+                                           self.gp.hyper.length_mm, lv.tau_n_per_mm)
         return self._cache["map"]
 
     def _cells_of(self, xy: np.ndarray) -> np.ndarray:
