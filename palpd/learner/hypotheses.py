@@ -82,9 +82,9 @@ class Hypotheses:
         self.fits["none"] = self._fit(shapes.Family("circles", 0, priors.scale_mm), obs, priors, list, max_starts)
         yield self.fits["none"].work
         best_k = 0
-        for k in range(1, MAX_LUMPS + 1):  # one lump more while the last fit leaves a reading unexplained,
-            prev = self.fits[self._name_of(k - 1)]  # and always one beyond the best (where they disagree is
-            if k > best_k + 1 and not self._unexplained(prev, obs).any():  # worth a look)
+        for k in range(1, MAX_LUMPS + 1):  # one lump more while the last fit leaves a reading unexplained
+            prev = self.fits[self._name_of(k - 1)]
+            if not self._unexplained(prev, obs).any():
                 break
             family = shapes.Family("circles", k, priors.scale_mm)
             fit = self._fit(family, obs, priors, lambda: self._circle_starts(prev, obs, regions, k, priors),
@@ -269,9 +269,9 @@ class Hypotheses:
         """The fit with its evidence checked (once per refit; Kalman steps carry it along). A refit
         that stayed within 1 sd of the mode last checked keeps that check's correction until the
         readings have grown by RECHECK_GROWTH. Linear in its parameters, `none` is its Laplace
-        approximation exactly."""
+        approximation exactly; one lump is left as Laplace has it (docs/learner.md says why)."""
         fit = self.fits[name]
-        if not fit.family.k or fit.evidence_checked:
+        if fit.family.k < 2 or fit.evidence_checked:
             return fit
         last = self.volumes.get(name)
         if last is None or not last.holds_for(fit):

@@ -26,7 +26,7 @@ import math
 import numpy as np
 
 from palpd.learner.describe import quantities
-from palpd.learner.evidence import Fit, Priors, neg_log_posterior, stacked
+from palpd.learner.evidence import Fit, Priors, neg_log_posterior
 
 MAX_STRETCH = 2.0  # a direction's sd grows at most this much beyond the curvature's
 MIN_SHARE = 0.01  # directions carrying less than this share of every reported variance are kept as they are
@@ -47,12 +47,9 @@ def checked_cov(fit: Fit, obs, priors: Priors) -> np.ndarray:
     carried = (rows @ directions) ** 2
     share = carried / np.maximum(carried.sum(axis=1, keepdims=True), 1e-300)
     objective = _objective(fit, obs, priors)
-    profiled = _profiled(fit, obs, priors, objective, lo, hi)
     base = objective(fit.theta)
     for j in np.flatnonzero((share >= MIN_SHARE).any(axis=0)):
-        others = np.delete(directions, j, axis=1)
-        along = lambda theta: profiled(theta, others)  # noqa: E731
-        sides = [_half_nat_point(along, base, fit.theta, sign * directions[:, j], lo, hi) for sign in (1.0, -1.0)]
+        sides = [_half_nat_point(objective, base, fit.theta, sign * directions[:, j], lo, hi) for sign in (1.0, -1.0)]
         directions[:, j] *= math.sqrt(0.5 * (sides[0] ** 2 + sides[1] ** 2))
     return directions @ directions.T
 
@@ -70,13 +67,10 @@ def log_volume_ratio(fit: Fit, obs, priors: Priors) -> float:
     lo, hi = priors.bounds(fit.family)
     directions = _directions(fit.cov, fit.theta, lo, hi)
     objective = _objective(fit, obs, priors)
-    profiled = _profiled(fit, obs, priors, objective, lo, hi)
     base = objective(fit.theta)
     log_volume = 0.0
     for j in np.flatnonzero(np.any(directions != 0.0, axis=0)):
-        others = np.delete(directions, j, axis=1)
-        along = lambda theta: profiled(theta, others)  # noqa: E731
-        sides = [_half_nat_point(along, base, fit.theta, sign * directions[:, j], lo, hi, 1.0,
+        sides = [_half_nat_point(objective, base, fit.theta, sign * directions[:, j], lo, hi, 1.0,
                                  EVIDENCE_ITERATIONS) for sign in (1.0, -1.0)]
         log_volume += math.log(max(0.5 * (sides[0] + sides[1]), TINY_SHARE))
     return log_volume
@@ -115,23 +109,6 @@ def _objective(fit: Fit, obs, priors: Priors):
         return neg_log_posterior(fit.family, theta, obs, priors, fit.noise_sd) + 0.5 * float(
             precision @ (theta - fit.theta) ** 2)
     return objective
-
-
-def _profiled(fit: Fit, obs, priors: Priors, objective, lo, hi):
-    """The objective at θ after one Gauss–Newton step along `others` (the other directions): the
-    posterior's ridge is curved where the lump profile is far from linear (a sharp edge read on
-    two sides), and a straight line off the mode leaves it at once, so the line alone would call
-    the posterior many times narrower than it is. The lower of the two values is taken."""
-    root = np.sqrt(priors.precision(fit.family))
-
-    def profiled(theta: np.ndarray, others: np.ndarray) -> float:
-        here = objective(theta)
-        r, jac = stacked(fit.family, theta, obs, priors, fit.noise_sd)
-        r = np.concatenate([r, root * (theta - fit.theta)])
-        moves = np.vstack([jac, np.diag(root)]) @ others
-        u = np.linalg.lstsq(moves, -r, rcond=None)[0]
-        return min(here, objective(np.clip(theta + others @ u, lo, hi)))
-    return profiled
 
 
 def _half_nat_point(objective, base: float, theta: np.ndarray, step: np.ndarray, lo, hi,
