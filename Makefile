@@ -19,8 +19,10 @@ run: $(BIN)/palpd
 
 # Two workers: the suite's scans, daemons and subprocesses spend most of their time in one Python each;
 # each module stays on one worker, and the wall-clock modules share one (tests/conftest.py).
+# PYTHONDONTWRITEBYTECODE emptied: the suite starts ~150 Python processes (CLIs, daemons, servo processes),
+# and with bytecode caching off (some shells set it) each compiles palpd afresh (~0.1 s of CPU each).
 test: $(BIN)/palpd
-	$(BIN)/python -m pytest -n 2
+	PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest -n 2
 
 reproduce: $(BIN)/palpd
 	$(BIN)/python scripts/reproduce.py

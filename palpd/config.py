@@ -84,6 +84,12 @@ class PalpationSettings(_Section):
     clearance_mm: Annotated[float, Field(gt=0, le=50)] = 4.0
     max_force_n: Positive = 4.0
     hold_s: NonNegative = 0.0
+    # A press that meets max_force_n early (`too_stiff`, or a fit less certain than 10 %, palpd.scan):
+    # "repalpate" presses the same spot once more at gentle_speed_factor times speed_mm_s (more samples over
+    # the same shallow depth, less of the controller's lag: a 50 N/mm lump in 5 N/mm tissue read 35-43 at
+    # 10 mm/s, 54-63 at 2.5) and keeps the gentle reading; "bound" keeps the first press and moves on.
+    too_stiff: Literal["repalpate", "bound"] = "repalpate"
+    gentle_speed_factor: Annotated[float, Field(gt=0, lt=1)] = 0.25
     # Contact: the low-passed force (time constant contact_filter_s) rises contact_on_sd noise sds above the
     # zero, and ends below contact_off_sd, the noise measured at the tare; never below these floors in N.
     contact_on_n: Positive = 0.03  # above safety.drift_retare_n: a drift left uncorrected never reads as contact

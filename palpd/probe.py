@@ -16,6 +16,10 @@ from palpd.stiffness import FitRejected, StiffnessResult
 from palpd.stiffness.palpation import fit_palpation
 
 DEPTH_RESOLUTION_MM = 0.05  # two encoder steps at the tip (~23 µm each)
+# A press stopped by the force limit within this depth of its contact point gives a bound, not a slope: over
+# four encoder steps the contact point's own error (~0.03 mm) and the controller's lag are most of the
+# depth, and a 100 N/mm lump fitted there read 20 ± 5 N/mm (0.086 mm deep); at 0.11 mm, 50 N/mm read 39 ± 15.
+MIN_SLOPE_DEPTH_MM = 0.1
 NO_FIT = ("too_few_samples", "no_range", "no_rise", "constant_force", "not_converged")
 
 
@@ -30,6 +34,7 @@ class Probe:
     rejected: str | None = None
     outcome: str = "fit"
     stiffness_bound_n_per_mm: float | None = None
+    presses: int = 1  # 2 when a too_stiff press was repeated gently (palpation.too_stiff = "repalpate")
 
     @property
     def stiffness_n_per_mm(self) -> float | None:
@@ -40,7 +45,8 @@ class Probe:
         out = {"target_xy_mm": _mm(rec.target_xy_mm), "xy_mm": _mm(rec.xy_mm), "outcome": self.outcome,
                "stiffness_n_per_mm": None if self.fit is None else round(self.fit.stiffness_n_per_mm, 5),
                "max_force_n": round(rec.max_force_n, 4), "stop_reason": rec.stop_reason,
-               "contact_threshold_n": round(rec.contact_on_n, 4), "dropped_samples": rec.dropped_samples}
+               "contact_threshold_n": round(rec.contact_on_n, 4), "dropped_samples": rec.dropped_samples,
+               "presses": self.presses}
         if rec.contact:
             out["contact_xy_mm"] = _mm(rec.xy_mm)
         if self.fit is not None:
@@ -64,9 +70,18 @@ def judge(record: PalpationRecord, settings) -> Probe:
         return Probe(record, None, "no contact found within the approach", "no_contact")
     try:
         varying = settings.palpation.speed_profile == "varying"
-        return Probe(record, fit_palpation(record, settings.stiffness, settings.servo.rate_hz, varying))
+        fit = fit_palpation(record, settings.stiffness, settings.servo.rate_hz, varying)
     except FitRejected as exc:
         return _unfitted(record, exc)
+    deepest_mm = max(record.depth_mm, default=0.0)
+    if record.stop_reason == "force" and deepest_mm < MIN_SLOPE_DEPTH_MM:
+        return _too_stiff(record, f"force limit {deepest_mm:.3f} mm in, under the {MIN_SLOPE_DEPTH_MM} mm a slope needs")
+    return Probe(record, fit)
+
+
+def _too_stiff(record: PalpationRecord, why: str) -> Probe:
+    bound = record.max_force_n / (max(record.depth_mm, default=0.0) + DEPTH_RESOLUTION_MM)
+    return Probe(record, None, f"force limit before a stiffness ({why})", "too_stiff", bound)
 
 
 def _unfitted(record: PalpationRecord, exc: FitRejected) -> Probe:
@@ -76,8 +91,7 @@ def _unfitted(record: PalpationRecord, exc: FitRejected) -> Probe:
         return Probe(record, None, f"no force reached the contact threshold down to the margin ({exc})",
                      "too_soft", bound)
     if exc.reason in NO_FIT and record.stop_reason == "force":
-        bound = record.max_force_n / (deepest_mm + DEPTH_RESOLUTION_MM)
-        return Probe(record, None, f"force limit before a stiffness ({exc})", "too_stiff", bound)
+        return _too_stiff(record, str(exc))
     if exc.reason in ("no_rise", "constant_force") and record.stop_reason == "depth" and deepest_mm > 0:
         resolution_n = 3.0 * (record.noise_sd_n or 0.0)
         bound = (max(record.max_force_n, 0.0) + resolution_n) / deepest_mm

@@ -10,11 +10,14 @@ from palpd.bench import Bench
 from palpd.config import RATE_MODELS
 from palpd.control.contact import contact_thresholds, tare_summary
 from palpd.control.palpation import Palpation, PalpationRecord
-from palpd.probe import Probe, judge
+from palpd.probe import MIN_SLOPE_DEPTH_MM, Probe, judge
 from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.errors import ScanFault, UsageError
 from palpd.estimate import estimate_lumps
 
+# A press stopped by the force limit whose stiffness is less certain than this (relative sd) is repeated gently
+# (palpation.too_stiff = "repalpate"): a 30 N/mm lump in 5 N/mm tissue read 25 ± 4.8 at 10 mm/s, 30 ± 5 at 2.5.
+REPALPATE_REL_SE = 0.1
 PARK_HEIGHT_MM = 20.0  # a single probe (probe.at) backs out this high before the servo parks the arm
 
 
@@ -78,10 +81,37 @@ def palpations(bench: Bench, settings, planned) -> list[Probe]:
 
 def palpate(bench: Bench, settings, xy_mm) -> Probe:
     """One palpation through the servo loop (contact thresholds scaled to the noise the last tare measured),
-    then its contact point found from the whole trace and its stiffness fit, or a named outcome."""
-    thresholds = contact_thresholds(settings.palpation, getattr(bench.servo.forces, "noise", None),
+    then its contact point found from the whole trace and its stiffness fit, or a named outcome. A press
+    that met the force limit early is repeated gently when palpation.too_stiff says so."""
+    p = settings.palpation
+    probe = _press(bench, settings, p, xy_mm)
+    if p.too_stiff != "repalpate" or not _stopped_early(probe):
+        return probe
+    again = _press(bench, settings, p.model_copy(update={"speed_mm_s": p.speed_mm_s * p.gentle_speed_factor}), xy_mm)
+    # the gentle press's fit over the first's (less of the controller's lag in it); a fit over a bound; and of
+    # two lower bounds on one spot, the higher (both hold)
+    kept = again if again.fit is not None or probe.fit is None else probe
+    if kept.outcome == "too_stiff" and probe.outcome == "too_stiff":
+        kept.stiffness_bound_n_per_mm = max(kept.stiffness_bound_n_per_mm, probe.stiffness_bound_n_per_mm)
+    kept.presses = 2
+    return kept
+
+
+def _stopped_early(probe: Probe) -> bool:
+    """The force limit came before a reading to REPALPATE_REL_SE: a fit over few samples, or a bound for want
+    of samples. Not a press the limit stopped within MIN_SLOPE_DEPTH_MM: a gentler one stops as shallow (the
+    depth is the force over k, whatever the speed), and on 100 N/mm a slow press chatters past the cap."""
+    rec = probe.record
+    if rec.stop_reason != "force" or max(rec.depth_mm, default=0.0) < MIN_SLOPE_DEPTH_MM:
+        return False
+    return probe.outcome == "too_stiff" or (
+        probe.fit is not None and probe.fit.stiffness_se_n_per_mm > REPALPATE_REL_SE * probe.fit.stiffness_n_per_mm)
+
+
+def _press(bench: Bench, settings, palpation_settings, xy_mm) -> Probe:
+    thresholds = contact_thresholds(palpation_settings, getattr(bench.servo.forces, "noise", None),
                                     settings.servo.rate_hz)
-    palpation = Palpation(xy_mm, settings.palpation, thresholds)
+    palpation = Palpation(xy_mm, palpation_settings, thresholds)
     bench.servo.run(palpation)
     return judge(palpation.finish(refit_onset=settings.stiffness.model not in RATE_MODELS), settings)
 

@@ -41,8 +41,11 @@ WALL_CLOCK_GROUP = "wall_clock"
 # The longest units of work, longest first (measured with `pytest --durations=0`). xdist hands out units in
 # collection order, so these start at once and the many short modules fill in around them; a long unit
 # started last would leave one core idle at the end of the run.
-LONGEST_FIRST = (WALL_CLOCK_GROUP, "test_active_scan", "test_daemon", "test_service_api", "test_daemon_service",
-                 "test_scan", "test_daemon_learner", "test_daemon_sliding", "test_study", "test_tradeoff")
+# by the module totals `pytest --durations=0` measured (a long unit handed out last leaves a worker idle)
+LONGEST_FIRST = (WALL_CLOCK_GROUP, "test_scan", "test_daemon", "test_learner", "test_service_api", "test_active_scan",
+                 "test_daemon_sliding", "test_tradeoff", "test_sensor_health", "test_study", "test_daemon_service",
+                 "test_daemon_learner", "test_bus_security", "test_bus_commands", "test_segment", "test_stalls",
+                 "test_supervised", "test_learner_service", "test_stiffness", "test_config")
 
 
 def _work_unit(nodeid: str) -> str:

@@ -73,12 +73,16 @@ def wait_until_sliding(recording, contact_s: float = 1.5, timeout_s: float = 30.
     raise AssertionError(f"no slide under way in {recording}")
 
 
-def last_slide(samples: list[dict]) -> list[dict]:
-    """The last stretch of samples with the tip in the tissue."""
-    last = max(i for i, p in enumerate(samples) if in_tissue(p))
-    first = last
-    while first > 0 and in_tissue(samples[first - 1]):
-        first -= 1
+def last_slide(samples: list[dict], flicker: int = 5) -> list[dict]:
+    """The last stretch of samples with the tip in the tissue. A lift crosses IN_TISSUE_MM with the encoder
+    step's flicker (in, out, in, out within a few ticks: one run's stretch ended on a single sample), so an
+    excursion of up to `flicker` samples does not end the stretch."""
+    inside = [i for i, p in enumerate(samples) if in_tissue(p)]
+    first = last = inside[-1]
+    for i in reversed(inside[:-1]):
+        if first - i > flicker:
+            break
+        first = i
     return samples[first:last + 1]
 
 

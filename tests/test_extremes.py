@@ -1,5 +1,5 @@
-"""Palpation at the extremes of sensor and tissue, through the simulator: noise 0.001-0.3 N, tissue 0.005-5 N/mm,
-exponent 1-2, damping 0-0.01 N·s/mm. Each palpation gives a stiffness within its stated uncertainty, or a named
+"""Palpation at the extremes of sensor and tissue, through the simulator: noise 0.001-0.3 N, tissue 0.005-5 N/mm
+and what is pressed up to 50 N/mm (a lump of 100 N/mm below, 20 times the stiffest tissue), exponent 1-2, damping 0-0.01 N·s/mm. Each palpation gives a stiffness within its stated uncertainty, or a named
 outcome (a bound the truth satisfies), always where it was aimed."""
 import math
 import random
@@ -72,7 +72,7 @@ def check_honest(probe, k, n, b):
 # Each example is a simulated palpation (~0.5 s): a few, unshrunk (a failure prints its example as drawn).
 @hsettings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow],
            phases=[Phase.explicit, Phase.reuse, Phase.generate])
-@given(noise_n=st.floats(0.001, 0.3), log_k=st.floats(math.log(0.005), math.log(5.0)), n=st.floats(1.0, 2.0),
+@given(noise_n=st.floats(0.001, 0.3), log_k=st.floats(math.log(0.005), math.log(50.0)), n=st.floats(1.0, 2.0),
        b=st.sampled_from([0.0, 0.01]), seed=st.integers(0, 1000))
 def test_any_noise_and_tissue_palpated_through_the_simulator_gives_an_honest_reading(noise_n, log_k, n, b, seed):
     k = math.exp(log_k)
@@ -97,6 +97,34 @@ def test_the_stiffest_spot_is_measured_not_dropped(stiff_lump):
     assert centre.stiffness_n_per_mm == pytest.approx(12.0, abs=3.0 * centre.fit.stiffness_se_n_per_mm + 1.2)
     assert background.fit.model in ("linear", "linear-offset")
     assert background.stiffness_n_per_mm == pytest.approx(2.0, rel=0.05)
+
+
+@pytest.fixture(scope="module")
+def stiffer_lumps():
+    """5 N/mm tissue with lumps of 6 and 20 times that: the force limit comes 0.14 and 0.09 mm in."""
+    scene = Scene(name="stiffer", tissue={"stiffness_n_per_mm": 5.0}, sensor={"tilt": True},
+                  lump=[{"center_mm": (-15.0, 0.0), "radius_mm": 8.0, "stiffness_n_per_mm": 30.0},
+                        {"center_mm": (15.0, 0.0), "radius_mm": 8.0, "stiffness_n_per_mm": 100.0}])
+    bench = tared_bench(scene)
+    bound = SETTINGS.updated(palpation={"too_stiff": "bound"})
+    # 100 N/mm first, from the tare: the press bounces on it (position control on a spring that stiff), and
+    # coming down after the first lump's presses an impact reached 6.05 N, past the 6 N cap (README)
+    too_stiff = palpate(bench, SETTINGS, (15.0, 0.0))
+    return palpate(bench, SETTINGS, (-15.0, 0.0)), too_stiff, palpate(bench, bound, (-15.0, 0.0))
+
+
+def test_a_press_that_meets_the_force_limit_early_is_repeated_gently_or_bounded_as_the_settings_say(stiffer_lumps):
+    gentle, too_stiff, once = stiffer_lumps
+    assert gentle.presses == 2 and gentle.outcome == "fit" and once.presses == 1
+    assert once.record.stop_reason == gentle.record.stop_reason == "force"
+    assert gentle.stiffness_n_per_mm == pytest.approx(30.0, abs=2.0 * gentle.fit.stiffness_se_n_per_mm)
+    # the slower press reads closer to the truth than the first (the controller's lag is less of it)
+    assert abs(gentle.stiffness_n_per_mm - 30.0) < abs(once.stiffness_n_per_mm - 30.0)
+    # 100 N/mm meets 4 N within four encoder steps: a bound, honest, never a slope (it read 20 ± 5 N/mm); not
+    # pressed again, as a gentler press stops as shallow
+    assert too_stiff.outcome == "too_stiff" and too_stiff.presses == 1 and too_stiff.fit is None
+    assert 20.0 < too_stiff.stiffness_bound_n_per_mm <= 100.0
+    assert gentle.as_dict()["presses"] == 2
 
 
 def test_tissue_too_soft_to_outrun_a_drift_follower_still_fires_contact():

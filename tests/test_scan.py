@@ -114,16 +114,17 @@ def test_random_sliding_paths_stay_on_the_tissue_at_their_length(width, height, 
 
 
 def test_cli_scan_writes_report_and_plot(tmp_path, run_cli):
-    result = run_cli("scan", "--scene", SCENES / "paper.toml", "--strategy", "raster", "--max-palpations", "25",
+    # 3 x 3: what the report and plot hold, not how well a raster maps (the 8 x 8 test above)
+    result = run_cli("scan", "--scene", SCENES / "paper.toml", "--strategy", "raster", "--max-palpations", "9",
                      "--report", "r.json", "--plot", "r.png")
     assert result.returncode == 0, result.stderr
-    assert "[ 25/25]" in result.stderr  # progress
+    assert "[  9/9]" in result.stderr  # progress
     assert "lump 1: centre" in result.stdout
     report = json.loads((tmp_path / "r.json").read_text())
     for key in ("scene", "strategy", "seed", "palpations", "robot_time_s", "wall_time_s", "max_contact_force_n",
                 "faults", "lumps", "probes", "truth", "metrics"):
         assert key in report
-    assert report["scene"] == "paper" and report["palpations"] == 25 and len(report["probes"]) == 25
+    assert report["scene"] == "paper" and report["palpations"] == 9 and len(report["probes"]) == 9
     assert set(report["lumps"][0]) >= {"center_mm", "radius_mm", "center_sd_mm", "radius_sd_mm", "boundary_mm"}
     png = (tmp_path / "r.png").read_bytes()
     assert png.startswith(b"\x89PNG") and len(png) > 20_000

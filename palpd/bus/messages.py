@@ -74,6 +74,9 @@ class Palpation(Event):
     `rejected` (null from a daemon older than the field)."""
     stiffness_bound_n_per_mm: Optional[float] = None
     """A censored reading's bound: `too_stiff`, k is at least this; `too_soft`, at most (null otherwise)."""
+    presses: Optional[int] = None
+    """2 when the force limit came early and the spot was pressed again gently (palpation.too_stiff =
+    "repalpate"; the trace is the gentle press's), else 1 (null from a daemon older than the field)."""
 
 
 class Stiffness(Event):

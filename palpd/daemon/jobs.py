@@ -109,6 +109,7 @@ def journal_entry(index: int, probe, t_s: float) -> dict:
         "contact_on_n": record.contact_on_n, "contact_off_n": record.contact_off_n,
         "contact_filter_s": record.contact_filter_s, "force_lead_s": record.force_lead_s,
         "dropped_samples": record.dropped_samples, "stiffness_bound_n_per_mm": probe.stiffness_bound_n_per_mm,
+        "presses": probe.presses,
     }
 
 
@@ -116,7 +117,8 @@ def publish_entry(worker, entry: dict) -> None:
     """The palpation and (when the fit held) its stiffness on the bus."""
     worker.event("palpation", index=entry["index"], xy_mm=entry["xy_mm"], depth_mm=entry["depth_mm"],
                  force_n=entry["force_n"], target_xy_mm=entry["target_xy_mm"], rejected=entry["rejected"],
-                 outcome=entry["outcome"], stiffness_bound_n_per_mm=entry["stiffness_bound_n_per_mm"])
+                 outcome=entry["outcome"], stiffness_bound_n_per_mm=entry["stiffness_bound_n_per_mm"],
+                 presses=entry.get("presses", 1))  # a journal older than the field: one press
     if entry["stiffness_n_per_mm"] is not None:
         worker.event("stiffness", index=entry["index"], xy_mm=entry["xy_mm"],
                      stiffness_n_per_mm=entry["stiffness_n_per_mm"],

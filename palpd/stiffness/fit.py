@@ -39,7 +39,7 @@ def fit_model(model: Model, samples: Samples, reference_depth_mm: float) -> Mode
     theta = _solve_linear(model, d, f, rate) if model.linear else _solve_nonlinear(model, d, f, rate)
     residual = f - model.predict(theta, d, rate)
     rss = float(residual @ residual)
-    cov = _covariance(model, theta, d, rate, rss)
+    cov = _covariance(model, theta, d, rate, rss) * _serial_inflation(residual)
     scales = (samples.depth_scale_mm, samples.force_scale_n, samples.rate_scale_mm_s)
 
     def physical(t):
@@ -89,6 +89,19 @@ def _covariance(model: Model, theta, d, rate, rss: float) -> np.ndarray:
     jac = model.predict.design(d, rate) if model.linear else _numeric_jacobian(lambda t: model.predict(t, d, rate), theta)
     dof = max(d.size - theta.size, 1)
     return np.linalg.pinv(jac.T @ jac) * (rss / dof)
+
+
+def _serial_inflation(residual: np.ndarray) -> float:
+    """How much wider the parameters' variance is when neighbouring residuals move together (AR(1): (1 + ρ) /
+    (1 - ρ), ρ the lag-one autocorrelation, never below 1). A sensor's white noise leaves ρ ≈ 0; a press that
+    chatters on a stiff spot, or a model that misses the trace's shape, does not, and the plain least-squares
+    sd then trusts 126 samples as if independent: 10.6 ± 0.30 N/mm read on a 12 N/mm lump (ρ = 0.71)."""
+    if residual.size < 3:
+        return 1.0
+    denominator = float(residual @ residual)
+    rho = float(residual[1:] @ residual[:-1]) / denominator if denominator > 0 else 0.0
+    rho = min(max(rho, 0.0), 0.95)
+    return (1.0 + rho) / (1.0 - rho)
 
 
 def _numeric_jacobian(func, theta: np.ndarray) -> np.ndarray:

@@ -24,12 +24,12 @@ def fit_palpation(record, stiffness_settings, rate_hz: float, rate_varies: bool 
     s = stiffness_settings
     with_damping = MODELS[s.model].needs_rate if s.model != SELECT else rate_varies
     depth, force = list(record.depth_mm), list(record.force_n)
-    rate = list(depth_rate_mm_s(record.depth_mm, rate_hz))
+    rate = list(depth_rate_mm_s(record.depth_mm, rate_hz)) if with_damping else None  # only a damping model reads it
     if with_damping and len(record.unload_depth_mm) >= 5:
         depth += record.unload_depth_mm
         force += record.unload_force_n
         rate += list(depth_rate_mm_s(record.unload_depth_mm, rate_hz))
-    return fit_stiffness(depth, force, rate if with_damping else None, model=s.model, criterion=s.criterion,
+    return fit_stiffness(depth, force, rate, model=s.model, criterion=s.criterion,
                          reference_depth_mm=s.reference_depth_mm)
 
 
