@@ -206,6 +206,16 @@ def test_any_field_gives_a_sane_map(lumps, noise, seed):
         assert not softer, "a lump in tissue with no stiffer spot"
 
 
+@pytest.mark.parametrize("depth_mm", [0.5, 1.0])
+def test_a_soft_region_is_no_lump(depth_mm):
+    """Found by the test above: a soft disc (0.0625 N/mm, radius 16 mm) in 0.12 N/mm tissue, ten readings,
+    four stiff ones near the corners and six soft ones inside. Laplace took each of four lumps explaining
+    one stiff reading as free to lie anywhere on the tissue (`circles:4` won); once the evidence measures
+    that volume, the free-form map took the stiff edge all around for lumps in soft tissue."""
+    learner = learn(field([((0.0, 0.0), 16.0, depth_mm, 0.0625)]), budget=10, noise=0.002, seed=0, grid=21)
+    assert learner.lumps() == [], learner.choice
+
+
 def test_active_planner_feeds_fit_uncertainty_and_aims_failed_palpations_where_they_were_aimed():
     from types import SimpleNamespace
 

@@ -63,7 +63,7 @@ def test_the_evidence_picks_one_lump_not_two_two_not_one_and_none_on_flat_tissue
         obs = readings(k_at, lattice())
         hypotheses = Hypotheses((60.0, 60.0), 0.3, 0.01)
         hypotheses.update(obs, [], math.log(0.12))
-        assert hypotheses.choice(None).chosen == chosen, (chosen, hypotheses.choice(None))
+        assert hypotheses.choice(None, obs).chosen == chosen, (chosen, hypotheses.choice(None, obs))
 
 
 def test_map_truth_is_the_half_height_region_and_iou_compares_polygons(tmp_path):

@@ -47,7 +47,7 @@ def profile_radius_sd_mm(fit, obs, priors) -> float:
     """Half the width of the radius interval where −log posterior (the rest refitted) rises by ½."""
     lo, hi = priors.bounds(fit.family)
     def least(theta, low, high) -> float:
-        return levenberg_marquardt(lambda t: evidence._stacked(fit.family, t, obs, priors, fit.noise_sd),
+        return levenberg_marquardt(lambda t: evidence.stacked(fit.family, t, obs, priors, fit.noise_sd),
                                    theta, low, high, 1e-6, 200)[1]
     base = least(fit.theta, lo, hi)
     def rise(delta_mm: float) -> float:

@@ -61,7 +61,8 @@ def test_a_point_above_tau_by_less_than_its_noise_is_no_lump():
         learner.observe((x, 0.0), 0.12, 0.01)
     learner.observe((0.0, 15.0), 0.47, 0.05)  # 0.02 above τ with an SE of 0.05
     assert learner.lumps() == []
-    learner.observe((0.0, -15.0), 0.8, 0.01)
+    for xy in [(0.0, -15.0), (4.0, -15.0), (0.0, -19.0)]:  # a lump read at three spots (one stiff reading
+        learner.observe(xy, 0.8, 0.01)                      # among six is as likely an outlier: evidence.py)
     assert len(learner.lumps()) == 1
 
 

@@ -70,7 +70,7 @@ class Decision:
         the tolerance."""
         if not self._choice_made() or self._unexplored() is not None or self._unpinned() is not None:
             return False
-        if self._hidden_lump() is not None or abs(self.surprise_sd) > PREDICTED_SIGMA:
+        if self._hidden_lump() is not None or abs(self.surprise_sd) > PREDICTED_SIGMA or self._unfelt() is not None:
             return False
         tolerance = self.settings.tolerance_mm
         return all(_sds(lump) <= tolerance for lump in self.lumps())
@@ -132,6 +132,16 @@ class Decision:
         spacing = self.settings.min_spacing_mm
         centre = coverage.unconfirmed_centre(fit, readings, spacing)
         return centre if centre is not None else coverage.uncovered_edge(fit, readings, self.size_mm, spacing)
+
+    def _unfelt(self) -> np.ndarray | None:
+        """The centre of a lump that a hypothesis the evidence prefers needs and no reading felt
+        (hypotheses.py), unless a probe was already made there."""
+        centre = self.hypotheses.unfelt_centre
+        if centre is None or not self.probed:
+            return None
+        probes = np.asarray(self.probed)
+        near = np.hypot(probes[:, 0] - centre[0], probes[:, 1] - centre[1]) < self.settings.min_spacing_mm
+        return None if near.any() else centre
 
     def verdict(self) -> str:
         """`lumps`, `none`, or `undetermined` when the evidence has not decided between them."""
@@ -206,6 +216,9 @@ class Decision:
         if not self._adequate():  # the chosen one misses something: where the free-form map disagrees with it
             return acquisition.disagreement([(0.5, *self._prediction(self.choice.chosen, cells)),
                                              (0.5, self.gp.mean[cells], self.gp.var[cells])], self._noise_var())
+        unfelt = self._unfelt()
+        if unfelt is not None:  # over the lump a preferred hypothesis needs and no reading has felt
+            return 1.0 / (1.0 + np.hypot(xy[:, 0] - unfelt[0], xy[:, 1] - unfelt[1]))
         if fit is not None and fit.family.k:
             target = self._unpinned()
             if target is not None:  # nearest the spot that pins the lump down

@@ -55,6 +55,7 @@ class Fit:
     log_det: float  # log det of the curvature then
     work: int = 0  # what the fit cost, in evaluated residual entries (deterministic, unlike a clock)
     checked: bool = False  # cov checked against the posterior along its widest directions (posterior.py)
+    evidence_checked: bool = False  # log_evidence with the posterior's volume measured (posterior.py)
 
     @property
     def name(self) -> str:
@@ -131,7 +132,8 @@ def _inside(theta: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.clip(theta, lo + 1e-6 * span, hi - 1e-6 * span)
 
 
-def _stacked(family, theta, obs, priors, noise):
+def stacked(family, theta, obs, priors, noise):
+    """Residuals whose ½|r|² is −log posterior up to a constant (readings, then priors), and their Jacobian."""
     f, jac = shapes.evaluate(family, theta, obs.xy)
     r, jr = residuals(f, jac, obs.y, obs.sd, obs.kind, noise)
     pr, pj = prior_residuals(family, theta, priors)
@@ -139,7 +141,7 @@ def _stacked(family, theta, obs, priors, noise):
 
 
 def _solve(family, obs, priors, theta0, lo, hi, noise, give_up=None, max_iter: int = 60):
-    return levenberg_marquardt(lambda theta: _stacked(family, theta, obs, priors, noise), theta0, lo, hi,
+    return levenberg_marquardt(lambda theta: stacked(family, theta, obs, priors, noise), theta0, lo, hi,
                                COST_TOLERANCE, max_iter=max_iter, give_up=give_up)
 
 
@@ -157,7 +159,7 @@ def neg_log_posterior(family, theta, obs, priors, noise) -> float:
 
 
 def _evidence(family, theta, obs, priors, noise, noise_floor) -> Fit:
-    r, jac = _stacked(family, theta, obs, priors, noise)
+    r, jac = stacked(family, theta, obs, priors, noise)
     hessian = jac.T @ jac + np.diag(priors.precision(family))
     sign, logdet = np.linalg.slogdet(hessian)
     if sign <= 0:
@@ -214,16 +216,22 @@ def supported(family: shapes.Family, theta: np.ndarray, obs: Observations, noise
     """Every lump is felt at some exact reading: it is the lump felt most there, and taking it away
     changes the prediction by SUPPORT_SIGMA of that reading's noise at the floor (`noise`; not the
     fit's own σ_w, which an unexplained lump elsewhere inflates)."""
+    return not unfelt(family, theta, obs, noise)
+
+
+def unfelt(family: shapes.Family, theta: np.ndarray, obs: Observations, noise: float) -> list[int]:
+    """The lumps no exact reading feels (see `supported`)."""
     if family.k == 0:
-        return True
+        return []
     exact = obs.exact
     heights = shapes.heights_of(family, theta, obs.xy)[exact]
     total = np.sqrt(obs.sd[exact] ** 2 + noise**2)
     top = np.log1p(heights.max(axis=1))
     felt = np.argmax(heights, axis=1)
+    out = []
     for j in range(family.k):
         others = np.delete(heights, j, axis=1)
         without = np.log1p(others.max(axis=1)) if others.shape[1] else np.zeros(len(top))
         if not np.any(((top - without) >= SUPPORT_SIGMA * total) & (felt == j)):
-            return False
-    return True
+            out.append(j)
+    return out

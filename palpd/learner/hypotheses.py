@@ -27,6 +27,9 @@ LIGHT_ITERATIONS = 12  # a refit spread over many readings takes at most this ma
 CONTENDER_WEIGHT = 1e-3  # a hypothesis this likely gets fresh starts as soon as a reading surprises it
 START_SHARPNESS = 6.0
 ELLIPSE_START_STRETCH = 0.4  # log axis ratio an ellipse start is given along a region's long axis
+NEGLIGIBLE_NATS = 7.0  # a hypothesis whose Laplace evidence (an upper bound of its checked one) is this far
+#                       below the best checked one weighs under 1e-3 (< CONTENDER_WEIGHT): not worth checking
+RECHECK_GROWTH = 4 / 3  # a volume check holds for its mode (within 1 sd) until the readings grow this much
 
 
 @dataclass(frozen=True)
@@ -57,6 +60,8 @@ class Hypotheses:
         self.fits: dict[str, Fit] = {}
         self.raw: dict[str, Fit] = {}  # each checked fit as refitted: its Laplace covariance (where to probe)
         self.weights: dict[str, float] = {}  # of the last choice: who is worth a fresh look when surprised
+        self.unfelt_centre: np.ndarray | None = None  # of the last choice (_unfelt_centre)
+        self.volumes: dict[str, _Volume] = {}  # each hypothesis's last volume check (posterior.log_volume_ratio)
 
     def priors(self, obs: Observations) -> Priors:
         return Priors(self.size_mm, self.min_contrast, float(np.median(obs.y)))
@@ -88,8 +93,7 @@ class Hypotheses:
                 break
             self.fits[fit.name] = fit
             seen.append(fit.name)
-            best = self.fits[self._name_of(best_k)]
-            if fit.supported and fit.log_evidence > best.log_evidence:
+            if fit.supported and self._beats(fit.name, self._name_of(best_k), obs):
                 best_k = k
             yield fit.work
         for k in range(max(1, best_k - 1 if best_k <= 2 else best_k), best_k + 1):
@@ -220,18 +224,76 @@ class Hypotheses:
         return starts
 
     # -- the choice -------------------------------------------------------------------------------
-    def choice(self, free_form_log_evidence: float | None) -> Choice:
-        """Posterior weights of the supported hypotheses (and the free-form map's, when it has a region)."""
+    def choice(self, free_form_log_evidence: float | None, obs: Observations) -> Choice:
+        """Posterior weights of the supported hypotheses (and the free-form map's, when it has a region),
+        each parametric one's evidence checked against its posterior (posterior.py) from the most
+        likely down, until the rest could not weigh anything whatever their check says."""
         candidates = {name: fit.log_evidence for name, fit in self.fits.items() if fit.supported}
+        best = -math.inf
         if free_form_log_evidence is not None:
-            candidates["free-form"] = free_form_log_evidence
+            candidates["free-form"] = best = free_form_log_evidence
+        for name in sorted(candidates, key=lambda m: -candidates[m]):
+            if name == "free-form" or candidates[name] < best - NEGLIGIBLE_NATS:
+                continue
+            candidates[name] = self._evidence_checked(name, obs).log_evidence
+            best = max(best, candidates[name])
         names = sorted(candidates, key=lambda m: -candidates[m])
+        self.unfelt_centre = self._unfelt_centre(candidates[names[0]], obs)
         top = candidates[names[0]]
         raw = {m: math.exp(candidates[m] - top) for m in names}
         total = sum(raw.values())
         weights = {m: v / total for m, v in raw.items()}
         self.weights = weights
         return Choice(names[0], weights[names[0]], names[1] if len(names) > 1 else None, weights)
+
+    def _unfelt_centre(self, chosen_log_evidence: float, obs: Observations) -> np.ndarray | None:
+        """The centre of a lump no reading feels yet, in a hypothesis the evidence prefers to the chosen
+        one (checked): the readings ask for that lump, and one reading over it says whether it is there."""
+        for name, fit in sorted(self.fits.items(), key=lambda kv: -kv[1].log_evidence):
+            if fit.log_evidence <= chosen_log_evidence:
+                return None
+            if fit.supported or self._evidence_checked(name, obs).log_evidence <= chosen_log_evidence:
+                continue
+            fit = self.fits[name]
+            j = evidence.unfelt(fit.family, fit.theta, obs, self.noise_floor)[0]
+            return fit.theta[fit.family.lump_slice(j)][:2]
+        return None
+
+    def _beats(self, name: str, best: str, obs: Observations) -> bool:
+        """`name` has more evidence than `best`, both checked (Laplace first: it bounds the checked one)."""
+        if self.fits[name].log_evidence <= self._evidence_checked(best, obs).log_evidence:
+            return False
+        return self._evidence_checked(name, obs).log_evidence > self.fits[best].log_evidence
+
+    def _evidence_checked(self, name: str, obs: Observations) -> Fit:
+        """The fit with its evidence checked (once per refit; Kalman steps carry it along). A refit
+        that stayed within 1 sd of the mode last checked keeps that check's correction until the
+        readings have grown by RECHECK_GROWTH. Linear in its parameters, `none` is its Laplace
+        approximation exactly; one lump is left as Laplace has it (docs/learner.md says why)."""
+        fit = self.fits[name]
+        if fit.family.k < 2 or fit.evidence_checked:
+            return fit
+        last = self.volumes.get(name)
+        if last is None or not last.holds_for(fit):
+            last = self.volumes[name] = _Volume(fit.theta, np.linalg.pinv(fit.cov), fit.n,
+                                                posterior.log_volume_ratio(fit, obs, self.priors(obs)))
+        fit = self.fits[name] = replace(fit, log_evidence=fit.log_evidence + last.log_ratio, evidence_checked=True)
+        return fit
+
+
+@dataclass(frozen=True)
+class _Volume:
+    """A volume check: the mode it was made at, that mode's precision, the readings then, its result."""
+    theta: np.ndarray
+    precision: np.ndarray
+    n: int
+    log_ratio: float
+
+    def holds_for(self, fit: Fit) -> bool:
+        if fit.theta.shape != self.theta.shape or fit.n > RECHECK_GROWTH * self.n:
+            return False
+        moved = fit.theta - self.theta
+        return float(moved @ self.precision @ moved) <= 1.0
 
 
 def _kmeans(points: np.ndarray, k: int) -> np.ndarray:

@@ -4,7 +4,8 @@ Each region that an observed stiff point supports (the model alone never makes
 a lump) becomes a lump with its 50 % boundary as a closed polygon, its centroid
 and equal-area radius (a free-form region has no circle to report), and
 uncertainties from how well the boundary is pinned down: σ/|∇μ| across it,
-through a circle fitted to the boundary.
+through a circle fitted to the boundary. Lumps sit in tissue: when the stiff part
+runs along the whole edge of the area, it is the tissue and there is no lump.
 """
 from __future__ import annotations
 
@@ -30,6 +31,7 @@ class Map:
     std: np.ndarray     # (ny, nx) posterior sd
     tau: np.ndarray     # (ny, nx) threshold
     length_mm: float    # kernel length scale: how far one probe informs
+    tissue_tau: float   # the global τ (min_contrast above the tissue level), where no region's own holds
 
     @property
     def cell_mm(self) -> float:
@@ -77,10 +79,20 @@ def _stretch(cov: np.ndarray) -> tuple[float, float]:
 
 
 def _backed_regions(m: Map, stiff_xy: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
-    labels, count = ndimage.label(m.mean > m.tau, EIGHT_CONNECTED)
+    above = m.mean > m.tau
+    if _surrounds_the_tissue(m.mean > m.tissue_tau):  # stiffer than the tissue at all, all along the edge
+        return np.zeros(above.shape, dtype=int), []
+    labels, count = ndimage.label(above, EIGHT_CONNECTED)
     supported = _supported_labels(m, labels, stiff_xy)
     regions = [labels == label for label in range(1, count + 1) if label in supported]
     return labels, [r for r in regions if np.count_nonzero(r) >= MIN_REGION_CELLS]
+
+
+def _surrounds_the_tissue(above: np.ndarray) -> bool:
+    """The stiff part runs all along the area's edge: lumps sit in tissue, so the stiff material is the
+    tissue itself and what lies below it a soft region in it, not lumps around it (τ came from the
+    soft readings' level, and an active learner reads a soft region as often as a lump)."""
+    return bool(above[0].all() and above[-1].all() and above[:, 0].all() and above[:, -1].all())
 
 
 def _supported_labels(m: Map, labels: np.ndarray, stiff_xy: np.ndarray) -> set[int]:

@@ -121,7 +121,7 @@ class Learner(Decision):
             if n % max(1, n // REFITS_PER_DOUBLING) == 0 and next(self._pass or iter(()), None) is None:
                 self._pass = self.hypotheses.refits(self.obs, self._find_regions(), self._tissue_log(), LIGHT_STARTS)
                 next(self._pass)
-        self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None)
+        self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None, self.obs)
 
     def _tissue_log(self) -> float:
         return math.log(self._levels().tissue_n_per_mm)
@@ -151,7 +151,7 @@ class Learner(Decision):
         exact = self.obs.exact
         tau = tau_field(mean, lv, reach_cells, self._cells_of(self.obs.xy[exact]), np.exp(self.obs.y[exact]))
         self._cache["map"] = free_form.Map(self.xs, self.ys, mean, mean * self.gp.std().reshape(shape), tau,
-                                           self.gp.hyper.length_mm)
+                                           self.gp.hyper.length_mm, lv.tau_n_per_mm)
         return self._cache["map"]
 
     def _cells_of(self, xy: np.ndarray) -> np.ndarray:
