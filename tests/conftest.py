@@ -4,6 +4,13 @@ from pathlib import Path
 
 import pytest
 
+from palpd.threads import pin_blas_to_one_thread
+
+# The tests run scans and learners in this process too: pinned as palpd pins its own processes. Unpinned,
+# OpenBLAS's second thread spins beside each small product and takes the other xdist worker's core
+# (tests/test_learner.py and test_active_scan.py: 47 s of CPU for 28 s of work, 29 s pinned).
+pin_blas_to_one_thread()
+
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "config" / "scenes"
 

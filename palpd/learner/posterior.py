@@ -106,8 +106,11 @@ def _objective(fit: Fit, obs, priors: Priors):
     precision = priors.precision(fit.family)
 
     def objective(theta: np.ndarray) -> float:
-        return neg_log_posterior(fit.family, theta, obs, priors, fit.noise_sd) + 0.5 * float(
-            precision @ (theta - fit.theta) ** 2)
+        # a trial point far out along a direction may leave the shape's domain (a radius through zero):
+        # its value is then not finite, which the callers read as "risen past", never as a warning
+        with np.errstate(all="ignore"):
+            return neg_log_posterior(fit.family, theta, obs, priors, fit.noise_sd) + 0.5 * float(
+                precision @ (theta - fit.theta) ** 2)
     return objective
 
 
@@ -124,7 +127,8 @@ def _half_nat_point(objective, base: float, theta: np.ndarray, step: np.ndarray,
     for _ in range(iterations):
         if t <= 0.0:
             return 0.0
-        rise = objective(theta + t * step) - base
+        with np.errstate(all="ignore"):  # a step holding a non-finite entry gives a non-finite rise: "past"
+            rise = objective(theta + t * step) - base
         if math.isfinite(rise) and rise <= 0.5:
             below = t
             if t >= limit:
