@@ -10,6 +10,7 @@ import sys
 import time
 
 from palpd.control.palpation import Palpation
+from palpd.control.tasks import MoveTo
 
 
 def add_parser(subparsers):
@@ -95,15 +96,32 @@ def servo_loop(settings, seconds: float) -> tuple[dict, list[dict]]:
 
 
 class _PalpateUntil:
-    """Palpations at the tissue centre, one after another, until the wall clock says stop."""
+    """Palpations at the tissue centre, one after another, until the wall clock says stop; then up off the
+    tissue to above it (a task that ended mid-press would leave the arm pressing, and between tasks the
+    bridge's gravity hold lets the tissue throw the light arm off: 461 mm/s at the park's first tick, a
+    speed fault)."""
 
     def __init__(self, end_s: float, palpation_settings) -> None:
         self.end_s, self.settings = end_s, palpation_settings
         self._task = None
+        self._target = None
+        self._leaving = False
         self.done = False
 
     def step(self, tick):
+        p = self.settings
+        if tick.t_s >= self.end_s and not self._leaving:
+            self._leaving = True
+            target = self._target
+            if target is None or target[2] >= p.clearance_mm:  # not down near the tissue: stop where it is
+                self.done = True
+                return target if target is not None else tick.tip_mm
+            self._task = MoveTo((target[0], target[1], p.clearance_mm), p.approach_speed_mm_s, p.accel_mm_s2,
+                                start=target)  # straight up, as a palpation's own retract
         if self._task is None or self._task.done:
-            self._task = Palpation((0.0, 0.0), self.settings)
-        self.done = tick.t_s >= self.end_s
-        return self._task.step(tick)
+            if self._leaving:
+                self.done = True
+                return self._target
+            self._task = Palpation((0.0, 0.0), p)
+        self._target = self._task.step(tick)
+        return self._target
