@@ -16,7 +16,8 @@ from palpd.errors import ScanFault, UsageError
 from palpd.estimate import estimate_lumps
 
 # A press stopped by the force limit whose stiffness is less certain than this (relative sd) is repeated gently
-# (palpation.too_stiff = "repalpate"): a 30 N/mm lump in 5 N/mm tissue read 25 ± 4.8 at 10 mm/s, 30 ± 5 at 2.5.
+# (palpation.too_stiff = "repalpate"): a 30 N/mm lump in 5 N/mm tissue read 25.1 ± 6.9, then 30.2 ± 4.3
+# (scripts/stiff_spots.py).
 REPALPATE_REL_SE = 0.1
 PARK_HEIGHT_MM = 20.0  # a single probe (probe.at) backs out this high before the servo parks the arm
 
