@@ -195,7 +195,7 @@ class RemoteServo:
         if self.ring is None:
             return [], since or 0, 0
         if since is None:
-            return [], self.ring.header()["written"], 0
+            return [], self.ring.written(), 0
         return self.ring.read_new(since)
 
     def health_age_s(self) -> float:

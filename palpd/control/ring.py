@@ -7,6 +7,11 @@ falls more than a ring behind loses the oldest samples and is told how many.
 The header also carries the loop's heartbeat, its clock and tick counters, and
 the parent's e-stop input, which the loop reads every tick, and its wind-down request (end the task under
 way gently: a slide lifts off at once), which a task that can wind down reads every tick.
+
+Every header field is one aligned 8-byte word, written and read through numpy (a single
+store or load), never through `struct`: struct writes a field byte by byte, and a reader in
+the other process then saw the write index as 0 about once in 150 reads while it changed,
+went back to reading from index 0 and recorded a ring of samples twice.
 """
 from __future__ import annotations
 
@@ -16,17 +21,15 @@ from multiprocessing import shared_memory
 import numpy as np
 
 CAPACITY = 1 << 14  # samples: 16 s at 1 kHz
-# write_index, heartbeat, ticks, overruns, now_s (the producer's, written in one call), estop, wind_down
-# (the parent's)
-_HEADER = struct.Struct("<QQQQdQQ")
-_BEAT_FIELDS = struct.Struct("<QQQd")
+# write_index, heartbeat, ticks, overruns, now_s (the producer's), estop, wind_down (the parent's)
+_WORDS = ("written", "heartbeat", "ticks", "overruns", "now_s", "estop", "wind_down")
+_INDEX, _BEAT, _TICKS, _OVERRUNS, _NOW, _ESTOP, _WIND_DOWN = range(len(_WORDS))
 _SAMPLE = struct.Struct("<d3d3d3ddII")
 SAMPLE_DTYPE = np.dtype([("t_s", "<f8"), ("q_rad", "<f8", 3), ("tip_mm", "<f8", 3), ("force_n", "<f8", 3),
                          ("normal_force_n", "<f8"), ("status", "<u4"), ("flags", "<u4")])
 assert SAMPLE_DTYPE.itemsize == _SAMPLE.size
 HEADER_BYTES = 64
 FLAG_MOTORS_ON, FLAG_FAULT, FLAG_TASK = 1, 2, 4
-_INDEX, _BEAT, _TICKS, _OVERRUNS, _NOW, _ESTOP, _WIND_DOWN = (8 * i for i in range(7))
 
 
 class SampleRing:
@@ -35,6 +38,8 @@ class SampleRing:
         self._buffer = memory.buf
         self.capacity = (memory.size - HEADER_BYTES) // _SAMPLE.size
         self._slots = np.ndarray((self.capacity,), SAMPLE_DTYPE, self._buffer, HEADER_BYTES)
+        self._words = np.ndarray((len(_WORDS),), "<u8", self._buffer, 0)  # the header, one aligned word each
+        self._now = np.ndarray((1,), "<f8", self._buffer, 8 * _NOW)
         self._index = 0
         self._beats = 0
 
@@ -62,51 +67,59 @@ class SampleRing:
                           q[0], q[1], q[2], tip[0], tip[1], tip[2], f[0], f[1], f[2],
                           tick.normal_force_n, tick.status, flags)
         self._index = i + 1
-        struct.pack_into("<Q", self._buffer, _INDEX, i + 1)
+        self._words[_INDEX] = i + 1  # after the slot: a reader never sees a slot before it is complete
 
     def beat(self, now_s: float, ticks: int, overruns: int) -> None:
         self._beats += 1
-        _BEAT_FIELDS.pack_into(self._buffer, _BEAT, self._beats, ticks, overruns, now_s)
+        words = self._words
+        words[_BEAT], words[_TICKS], words[_OVERRUNS] = self._beats, ticks, overruns
+        self._now[0] = now_s
 
     def is_set(self) -> bool:
         """The e-stop input (the loop polls it like a threading.Event)."""
-        return struct.unpack_from("<Q", self._buffer, _ESTOP)[0] != 0
+        return self._words[_ESTOP] != 0
 
     def wind_down_wanted(self) -> bool:
-        return struct.unpack_from("<Q", self._buffer, _WIND_DOWN)[0] != 0
+        return self._words[_WIND_DOWN] != 0
 
     # Consumer (the parent) -------------------------------------------------------------------------
 
     def set_estop(self, on: bool = True) -> None:
-        struct.pack_into("<Q", self._buffer, _ESTOP, 1 if on else 0)
+        self._words[_ESTOP] = 1 if on else 0
 
     def set_wind_down(self, on: bool = True) -> None:
-        struct.pack_into("<Q", self._buffer, _WIND_DOWN, 1 if on else 0)
+        self._words[_WIND_DOWN] = 1 if on else 0
+
+    def written(self) -> int:
+        """How many samples the producer has written (the index of the next)."""
+        return int(self._words[_INDEX])
 
     def header(self) -> dict:
-        index, beat, ticks, overruns, now_s, estop, wind_down = _HEADER.unpack_from(self._buffer, 0)
-        return {"written": index, "heartbeat": beat, "ticks": ticks, "overruns": overruns,
-                "estop": bool(estop), "wind_down": bool(wind_down), "now_s": now_s}
+        written, beat, ticks, overruns, _, estop, wind_down = self._words.tolist()
+        return {"written": written, "heartbeat": beat, "ticks": ticks, "overruns": overruns,
+                "estop": bool(estop), "wind_down": bool(wind_down), "now_s": float(self._now[0])}
 
     def last_flags(self) -> int:
         """The flags of the newest sample (FLAG_FAULT: the loop has latched a fault); 0 before the first."""
-        end = struct.unpack_from("<Q", self._buffer, _INDEX)[0]
+        end = self.written()
         return 0 if end == 0 else int(self._slots[(end - 1) % self.capacity]["flags"])
 
     def read_new(self, since: int) -> tuple[np.ndarray, int, int]:
         """Samples written since index `since`: (samples, next index to ask for, samples lost)."""
-        end = struct.unpack_from("<Q", self._buffer, _INDEX)[0]
+        end = self.written()
         start = max(since, end - self.capacity)
         slots = np.arange(start, end) % self.capacity
-        samples = self._slots[slots].copy()
-        overwritten = struct.unpack_from("<Q", self._buffer, _INDEX)[0] - self.capacity
-        if overwritten > start:  # the producer lapped us while we copied: those slots may be torn
-            samples = samples[overwritten - start:]
+        samples = self._slots[slots]  # fancy indexing copies
+        # Lapped while we copied: those slots may hold newer or torn samples. The slot of the index the
+        # producer is writing now (`written`) is the one of index written - capacity: that one too.
+        overwritten = self.written() - self.capacity + 1
+        if overwritten > start:
+            samples = samples[overwritten - start:]  # none at all if it lapped us past `end`
             start = overwritten
-        return samples, end, start - since
+        return samples, max(end, start), start - since  # lost once: the next read starts past them
 
     def close(self) -> None:
-        del self._slots
+        del self._slots, self._words, self._now
         self._buffer = None
         self.memory.close()
         if self.owner:

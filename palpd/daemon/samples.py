@@ -22,16 +22,21 @@ def raw_samples(ring_samples) -> list[dict]:
 class SampleDrain:
     def __init__(self) -> None:
         self.next_index: int | None = None
+        self.source = None  # whose ring next_index counts in
         self.lost = 0
         self.recorded = 0
 
     def start(self, servo) -> None:
         """Record from the newest tick on (what came before belongs to no recording)."""
         _, self.next_index, _ = servo.read_samples(None)
+        self.source = servo
 
     def drain(self, servo, recording) -> None:
         if self.next_index is None or recording is None:
             return
+        if servo is not self.source:  # a new servo process (reset after a lost one): its ring counts from 0
+            log.info("recording the new servo process's samples from its newest tick")
+            self.start(servo)
         samples, self.next_index, lost = servo.read_samples(self.next_index)
         if lost:
             self.lost += lost
