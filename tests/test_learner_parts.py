@@ -2,13 +2,14 @@
 import math
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
 from hypothesis import example, given, settings as hsettings, strategies as st
 
 from palpd import metrics
-from palpd.learner.gp import Hyper, IncrementalGP
+from palpd.learner.gp import JITTER, Hyper, IncrementalGP, fit_hyper
 from palpd.learner.hypotheses import Hypotheses
 from palpd.learner.observations import Observations
 
@@ -52,6 +53,56 @@ def readings(k_at, points):
 def lattice(step=6.0):
     axis = np.arange(-27.0, 27.1, step)
     return [(x, y) for x in axis for y in axis]
+
+
+def sklearn_fit_hyper(xy, y, noise_var, start: Hyper, length_bounds_mm, white_floor_var) -> Hyper:
+    """The same fit by scikit-learn's GaussianProcessRegressor (what the learner used before fit_hyper)."""
+    from sklearn.gaussian_process import GaussianProcessRegressor
+    from sklearn.gaussian_process.kernels import ConstantKernel, DotProduct, Matern, WhiteKernel
+
+    scale = start.scale_mm
+    bounds = (length_bounds_mm[0] / scale, length_bounds_mm[1] / scale)
+    white_bounds = (white_floor_var, max(1.0, 2.0 * white_floor_var))
+    kernel = (ConstantKernel(float(np.clip(start.signal_var, 1e-6, 1e2)), (1e-6, 1e2))
+              * Matern(float(np.clip(start.length_mm / scale, *bounds)), bounds, nu=2.5)
+              + ConstantKernel(start.slope_var, "fixed") * DotProduct(math.sqrt(start.level_var / start.slope_var),
+                                                                       "fixed")
+              + WhiteKernel(float(np.clip(start.white_var, *white_bounds)), white_bounds))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # a bound reached (ConvergenceWarning) is an answer
+        fitted = GaussianProcessRegressor(kernel, alpha=noise_var + JITTER).fit(xy / scale, y - start.mean).kernel_
+    return Hyper(start.mean, fitted.k1.k1.k1.constant_value, fitted.k1.k1.k2.length_scale * scale,
+                 fitted.k2.noise_level, start.level_var, start.slope_var, start.scale_mm)
+
+
+def log_evidence(hyper: Hyper, xy, y, noise_var) -> float:
+    gp = IncrementalGP(grid(3), hyper)
+    for p, v, var in zip(xy, y, noise_var):
+        gp.add(p, v, var)
+    return gp.log_marginal_likelihood()
+
+
+@hsettings(max_examples=20, deadline=None)
+@given(n=st.integers(3, 50), contrast=st.floats(0.0, 3.0), noise_sd=st.floats(1e-4, 0.5), seed=st.integers(0, 999),
+       start_var=st.floats(1e-3, 10.0), start_length_mm=st.floats(1.0, 40.0))
+@example(n=12, contrast=0.386, noise_sd=0.00247, seed=697, start_var=0.5, start_length_mm=8.0)
+def test_the_kernel_relearn_finds_scikit_learns_optimum(n, contrast, noise_sd, seed, start_var, start_length_mm):
+    """fit_hyper is scikit-learn's fit written over the learner's own kernel (so no learner imports
+    scikit-learn): from flat tissue to a 20x lump, from clean readings to very noisy ones, from starts
+    inside and outside the bounds, the same optimum. Where the evidence is flat in the field's variance
+    (no field at all: σ² anywhere below 1e-5) the two may stop at different σ²; the evidence is the same."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-30.0, 30.0, (n, 2))
+    y = np.log(0.12) + contrast * (np.hypot(*(xy - 4.0).T) < 9.0) + rng.normal(0.0, noise_sd, n)
+    noise_var = np.full(n, noise_sd**2)
+    start = Hyper(float(np.median(y)), start_var, start_length_mm, 1e-3)
+    mine = fit_hyper(xy, y, noise_var, start, (1.5, 30.0), 1e-4)
+    theirs = sklearn_fit_hyper(xy, y, noise_var, start, (1.5, 30.0), 1e-4)
+    assert log_evidence(mine, xy, y, noise_var) >= log_evidence(theirs, xy, y, noise_var) - 1e-6
+    assert mine.white_var == pytest.approx(theirs.white_var, rel=1e-2)
+    if max(mine.signal_var, theirs.signal_var) > 1e-5:
+        assert mine.signal_var == pytest.approx(theirs.signal_var, rel=1e-2)
+        assert mine.length_mm == pytest.approx(theirs.length_mm, rel=1e-2)
 
 
 def test_the_evidence_picks_one_lump_not_two_two_not_one_and_none_on_flat_tissue():

@@ -14,11 +14,10 @@ back to the row-by-row path, whose floor on each pivot keeps it finite.
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import LinAlgError, cholesky, solve_triangular
+from scipy.linalg import LinAlgError, cho_solve, cholesky, solve_triangular
 
 JITTER = 1e-9  # keeps the factor positive definite when a point is probed twice with zero noise
 BLOCK_ROWS = 128  # V grows by blocks of rows (float32: a gemv over it is memory-bound, half the bytes is half the time)
@@ -205,23 +204,47 @@ class IncrementalGP:
 
 def fit_hyper(xy: np.ndarray, y: np.ndarray, noise_var: np.ndarray, start: Hyper,
               length_bounds_mm: tuple[float, float], white_floor_var: float) -> Hyper:
-    """Maximum-marginal-likelihood Matérn field and white noise, the background plane's priors fixed."""
-    from sklearn.exceptions import ConvergenceWarning
-    from sklearn.gaussian_process import GaussianProcessRegressor
-    from sklearn.gaussian_process.kernels import ConstantKernel, DotProduct, Matern, WhiteKernel
+    """Maximum-marginal-likelihood Matérn field variance, length scale and white noise, the background
+    plane's priors fixed: L-BFGS-B on their logs from `start`, within bounds, with the exact gradient.
+
+    This is scikit-learn's GaussianProcessRegressor.fit for the kernel
+    C·Matérn(ν=5/2) + plane + White (same parametrisation, bounds, objective and optimiser call; a test
+    holds the two together), written over this module's kernel so that a learner does not import
+    scikit-learn: its import (with scipy.stats) cost every daemon and scan process ~0.75 s of CPU.
+    """
+    from scipy.optimize import minimize  # the stiffness fits import it too: already loaded in a scan
 
     scale = start.scale_mm  # the optimiser works in half-sizes, where the plane's slopes are per unit
-    bounds = (length_bounds_mm[0] / scale, length_bounds_mm[1] / scale)
-    field = (ConstantKernel(float(np.clip(start.signal_var, 1e-6, 1e2)), (1e-6, 1e2))
-             * Matern(float(np.clip(start.length_mm / scale, *bounds)), bounds, nu=2.5))
-    plane = ConstantKernel(start.slope_var, "fixed") * DotProduct(
-        math.sqrt(start.level_var / start.slope_var), "fixed")
-    white_bounds = (white_floor_var, max(1.0, 2.0 * white_floor_var))
-    white = WhiteKernel(float(np.clip(start.white_var, *white_bounds)), white_bounds)
-    gpr = GaussianProcessRegressor(field + plane + white, alpha=noise_var + JITTER, normalize_y=False)
-    with warnings.catch_warnings():  # a bound reached is an answer here, not a problem
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        gpr.fit(xy / scale, y - start.mean)
-    k = gpr.kernel_
-    return Hyper(start.mean, k.k1.k1.k1.constant_value, float(k.k1.k1.k2.length_scale) * scale,
-                 k.k2.noise_level, start.level_var, start.slope_var, start.scale_mm)
+    u = xy / scale
+    n = len(u)
+    distance = np.sqrt(np.maximum(_sq_dist(u, u), 0.0))
+    plane = start.level_var + start.slope_var * (u @ u.T)
+    diagonal = np.diag_indices(n)
+    residual = y - start.mean
+    bounds = np.log([(1e-6, 1e2), (length_bounds_mm[0] / scale, length_bounds_mm[1] / scale),
+                     (white_floor_var, max(1.0, 2.0 * white_floor_var))])
+    theta0 = np.clip(np.log([start.signal_var, start.length_mm / scale, start.white_var]), bounds[:, 0], bounds[:, 1])
+
+    def negative_lml_and_gradient(theta: np.ndarray):
+        signal_var, length, white_var = np.exp(theta)
+        r = (SQRT5 / length) * distance
+        decay = np.exp(-r)
+        matern = (1.0 + r + r * r / 3.0) * decay
+        k = signal_var * matern + plane
+        k[diagonal] += white_var + noise_var + JITTER
+        try:
+            factor = cholesky(k, lower=True, check_finite=False)
+        except LinAlgError:
+            return np.inf, np.zeros(3)
+        alpha = cho_solve((factor, True), residual, check_finite=False)
+        lml = -0.5 * residual @ alpha - np.log(np.diag(factor)).sum() - 0.5 * n * LOG_2PI
+        inner = np.outer(alpha, alpha) - cho_solve((factor, True), np.eye(n), check_finite=False)
+        gradient = 0.5 * np.array([(inner * (signal_var * matern)).sum(),  # ∂K/∂log σ²
+                                   (inner * (signal_var * r * r / 3.0 * (1.0 + r) * decay)).sum(),  # ∂K/∂log ℓ
+                                   white_var * np.trace(inner)])  # ∂K/∂log white = white · I
+        return -lml, -gradient
+
+    best = minimize(negative_lml_and_gradient, theta0, jac=True, method="L-BFGS-B", bounds=bounds).x
+    signal_var, length, white_var = np.exp(best)
+    return Hyper(start.mean, float(signal_var), float(length) * scale, float(white_var), start.level_var,
+                 start.slope_var, start.scale_mm)
