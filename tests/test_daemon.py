@@ -45,26 +45,26 @@ def test_a_client_drives_a_scan_and_gets_the_same_estimate_by_request(daemon):
     subscriber = daemon.subscriber()
     # A late joiner learns the state by asking, never by sleeping: subscriptions settle while we ask.
     assert daemon.call("estimate.get")["estimate"] is None
-    reply = daemon.call("scan.start", {"strategy": "raster", "max_palpations": 16})
-    assert reply["ok"] and reply["expected_total"] == 16, reply
+    reply = daemon.call("scan.start", {"strategy": "raster", "max_palpations": 9, "size_mm": [40, 40]})
+    assert reply["ok"] and reply["expected_total"] == 9, reply
     seen = collect_until_done(subscriber)
     for topic, payloads in seen.items():
         for payload in payloads:
             assert required[topic] <= set(payload), (topic, payload)
             EVENT_MODELS[topic].model_validate(payload)
-    assert len(seen["stiffness"]) == 16 and all(0.05 < s["stiffness_n_per_mm"] < 2 for s in seen["stiffness"])
+    assert len(seen["stiffness"]) == 9 and all(0.05 < s["stiffness_n_per_mm"] < 2 for s in seen["stiffness"])
     final = seen["estimate"][-1]
     assert final["points"] == len(seen["stiffness"]) and len(final["lumps"]) == 1
     assert [p["seq"] for p in seen["palpation"]] == sorted(p["seq"] for p in seen["palpation"])
     assert daemon.call("estimate.get")["estimate"] == final
     status = daemon.wait_for(lambda s: s["state"] == "ready", what="scan end")
-    assert status["palpations"] == 16 and not status["resumable"]
+    assert status["palpations"] == 9 and not status["resumable"]
     session = daemon.state_dir / "sessions" / status["session"]
-    assert len(read_journal(session / "journal.jsonl")) == 16
+    assert len(read_journal(session / "journal.jsonl")) == 9
     assert json.loads((session / "session.json").read_text())["status"] == "finished"
     recorded = read_messages(session / "recording-1.mcap")
     assert [p for t, p in recorded if t == "estimate"][-1] == final
-    assert sum(t == "palpation" for t, _ in recorded) == 16
+    assert sum(t == "palpation" for t, _ in recorded) == 9
     official = read_closed(session / "recording-1.mcap")  # the official reader agrees, schemas and all
     assert [(t, p) for t, p, _ in official["messages"]] == recorded
     samples = [(p, log_ns) for t, p, log_ns in official["messages"] if t == "samples"]
@@ -84,7 +84,7 @@ def test_a_client_drives_a_scan_and_gets_the_same_estimate_by_request(daemon):
             EVENT_MODELS[topic].model_validate(payload)
     replayed = subprocess.run([sys.executable, "-m", "palpd", "replay", str(session)], capture_output=True, text=True)
     assert replayed.returncode == 0 and "the recorded estimate is reproduced" in replayed.stdout, replayed.stdout
-    assert "(16 re-segmented from raw samples)" in replayed.stdout, replayed.stdout  # not the journal's traces
+    assert "(9 re-segmented from raw samples)" in replayed.stdout, replayed.stdout  # not the journal's traces
 
 
 def test_sigterm_mid_scan_stops_safely_and_exits_0(daemon):
