@@ -8,6 +8,7 @@ from __future__ import annotations
 from array import array
 
 import numpy as np
+import numpy.ma  # noqa: F401  np.percentile imports it on first use: not in a servo process's loop (15 ms cold)
 
 WINDOW_TICKS = 1 << 16  # about a minute at 1 kHz; older ticks are overwritten
 
