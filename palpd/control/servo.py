@@ -104,6 +104,10 @@ class ServoLoop(Sensing, Stopping):
         self._deadline = self.clock.now() + self.period_s
         self.clock.sleep_until(self._deadline)
         self._previous_t = None
+        # Deadlines missed before the enable (an idle tick, the servo process's start-up: on a cold machine
+        # its mlockall takes 40-370 ms) were not the supervised loop's: charged to the homing's first tick
+        # they made a loop_stall at start().
+        self._lost_s = 0.0
         self.supervisor.reset()  # the arm may have been moved by hand while the motors were off
         if self.truth is not None:
             self.truth.reset_peak()
@@ -190,6 +194,7 @@ class ServoLoop(Sensing, Stopping):
         now = self.clock.now()
         if now > self._deadline + self.period_s:
             self._deadline = now
+            self._lost_s = 0.0
             self._previous_t = None
             self._previous_tip = None
             self.supervisor.reset()
