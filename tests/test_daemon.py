@@ -170,10 +170,10 @@ def test_palpctl_status_scan_estimate_and_plot(daemon, run_cli, tmp_path):
         return run_cli("--endpoint", daemon.commands, "--events", daemon.events, *args, module="palpd.palpctl")
 
     assert json.loads(palpctl("status").stdout)["state"] == "ready"
-    started = palpctl("scan", "start", "--max-palpations", "9", "--size-mm", "40", "40")
+    started = palpctl("scan", "start", "--max-palpations", "4", "--size-mm", "40", "40")  # an estimate to plot
     assert started.returncode == 0, started.stderr
-    daemon.wait_for(lambda s: s["state"] == "ready" and s["palpations"] == 9, what="scan end")
-    assert json.loads(palpctl("estimate").stdout)["estimate"]["points"] == 9
+    daemon.wait_for(lambda s: s["state"] == "ready" and s["palpations"] == 4, what="scan end")
+    assert json.loads(palpctl("estimate").stdout)["estimate"]["points"] == 4
     refused = palpctl("reset")
     assert refused.returncode == 1 and "invalid_state" in refused.stderr
     assert palpctl("plot", "map.png").returncode == 0
