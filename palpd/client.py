@@ -15,7 +15,7 @@ import json
 import time
 import uuid
 from pathlib import Path
-from typing import Iterator
+from typing import Callable, Iterator
 
 import zmq
 from pydantic import ValidationError
@@ -179,14 +179,17 @@ class Client:
             socket.subscribe(topic)
         return socket
 
-    def events(self, *topics: str, timeout_s: float | None = None) -> Iterator[Event]:
+    def events(self, *topics: str, timeout_s: float | None = None,
+               stop: Callable[[], bool] | None = None) -> Iterator[Event]:
         """Events as they are published (Status, Palpation, Stiffness, Estimate, FaultMsg), all topics by default.
 
-        Ends when no event came for timeout_s (None: never). A status heartbeat comes at least
-        every second, so a status subscriber always hears from a live daemon.
+        Ends when no event came for timeout_s (None: never), or once stop() is true (asked at least every
+        0.25 s). A status heartbeat comes at least every second, so a status subscriber always hears from a
+        live daemon. One iterator is one subscription: a new one hears nothing published while it connects
+        (ZeroMQ's slow joiner), so a long watch keeps one iterator rather than starting one per timeout.
         """
         with self._subscription(*topics) as socket:
-            while _poll_in_slices(socket, timeout_s):
+            while _poll_in_slices(socket, timeout_s, stop):
                 topic, payload = socket.recv_multipart()[:2]
                 model = EVENT_MODELS.get(topic.decode(errors="replace"))
                 if model is None:
@@ -200,11 +203,14 @@ class Client:
 POLL_SLICE_S = 0.25
 
 
-def _poll_in_slices(socket: zmq.Socket, timeout_s: float | None) -> bool:
+def _poll_in_slices(socket: zmq.Socket, timeout_s: float | None, stop: Callable[[], bool] | None = None) -> bool:
     """socket.poll(timeout) in short slices, so a waiting client hears Ctrl-C or SIGINT within a slice whatever
-    the poll does with the interrupted call; True when a message is there, False at the timeout."""
+    the poll does with the interrupted call; True when a message is there, False at the timeout or once
+    stop() is true."""
     give_up = None if timeout_s is None else time.monotonic() + timeout_s
     while True:
+        if stop is not None and stop():
+            return False
         left_s = POLL_SLICE_S if give_up is None else min(POLL_SLICE_S, give_up - time.monotonic())
         if left_s <= 0:
             return False

@@ -105,21 +105,25 @@ def watch_line(event, last_status: list) -> str | None:
 
 
 def watch(client) -> int:
-    status = client.status()  # a late joiner: the state now, then every change
-    print(f"status: {status.state}, {status.palpations} palpations", flush=True)
-    last_status = [status.state, status.message]
+    client.status()  # a daemon that does not answer is said at once, in one line
     # Ctrl-C as a flag, not a KeyboardInterrupt: one raised while a finaliser runs is swallowed ("Exception
-    # ignored in ..."), and watch would go on; the flag is seen after the next event or poll slice.
+    # ignored in ..."), and watch would go on; the flag is seen within a poll slice.
     stopping: list[bool] = []
     previous = signal.signal(signal.SIGINT, lambda *_: stopping.append(True))
     try:
-        while not stopping:
-            for event in client.events(timeout_s=0.5):
-                line = watch_line(event, last_status)
-                if line:
-                    print(line, flush=True)
-                if stopping:
-                    break
+        # One subscription for the whole watch: a new one misses what is published while it connects. It
+        # has connected once it hears its first event (a status heartbeat comes every second); the state
+        # asked for after that is where the lines start, and no later change is missed.
+        events = client.events(stop=lambda: bool(stopping))
+        if next(events, None) is None:
+            return 0
+        status = client.status()  # a late joiner: the state now, then every change
+        print(f"status: {status.state}, {status.palpations} palpations", flush=True)
+        last_status = [status.state, status.message]
+        for event in events:
+            line = watch_line(event, last_status)
+            if line:
+                print(line, flush=True)
     finally:
         signal.signal(signal.SIGINT, previous)
     return 0
