@@ -188,3 +188,55 @@ def test_readings_faintly_above_the_model_around_a_hole_send_the_next_probe_into
     one = np.zeros(len(readings_xy))
     one[np.flatnonzero(around)[0]] = 2.0
     assert hidden_lump_spot(one, readings_xy, readings, 11.0) is None
+
+
+def test_a_reading_that_moves_the_centre_further_than_its_sd_allows_is_not_settled():
+    """In a Gaussian posterior a reading z sd from its prediction moves a quantity by at most |z| of its sd
+    before: a larger move (the posterior was narrower than the readings bear out) or a model that just
+    changed is no place to stop, however small the sds are now; a move within that bound is."""
+    from dataclasses import replace
+
+    from palpd.config import LearnerSettings
+    from palpd.learner.describe import quantities
+    from palpd.learner.model import Learner
+
+    learner = Learner((60.0, 60.0), LearnerSettings(grid_points=21), 0.3, 0)
+    k_at = lambda p: 0.12 + 0.68 / (1 + (math.dist(p, (5.0, 5.0)) / 7.0) ** 8)  # noqa: E731
+    for p in lattice() + [(5.0, 5.0), (11.0, 5.0), (5.0, 11.0)]:
+        learner.observe(p, k_at(p), 0.02 * k_at(p))
+    fit = learner.chosen_fit()
+    assert fit.name == "circles:1"
+    cx = fit.family.lump_slice(0).start  # the lump's centre x in θ
+    x_sd = math.sqrt(quantities(fit)[0] @ fit.cov @ quantities(fit)[0])
+    for shift_sd, surprise_sd, settled in [(0.5, 0.0, True), (3.0, 1.0, False), (-3.0, 0.3, False),
+                                           (3.0, 3.5, True), (0.0, 0.0, True)]:
+        theta = fit.theta.copy()
+        theta[cx] -= shift_sd * x_sd  # the centre before this reading, shift_sd of its own sd away
+        learner._fit_before, learner.surprise_sd = replace(fit, theta=theta), surprise_sd
+        assert learner._settled() is settled, (shift_sd, surprise_sd)
+    learner._fit_before = None  # no lump model before this reading
+    assert not learner._settled()
+    learner._fit_before = replace(fit, family=replace(fit.family, kind="ellipses"))
+    assert not learner._settled()
+
+
+def test_rivals_that_predict_alike_are_told_apart_around_the_lump_not_at_the_farthest_spot():
+    """Eight first readings (recorded from a simulated low-contrast scene) of which one felt a lump: the
+    circle and the ellipse fitted to it coincide (equal axes), so no reading's prediction tells them apart
+    and the choice stays unconfident. The next probe goes where the lump's shape is read, near the
+    reading that felt it; scored by disagreement alone (zero everywhere) it went to the tissue's farthest
+    spot, and the scan spent its whole budget on plain tissue."""
+    from palpd.config import LearnerSettings
+    from palpd.learner.model import Learner
+
+    felt = (7.5, -8.0)
+    recorded = [(felt, 0.17993, 0.00217), ((22.5, -24.0), 0.12016, 0.00316), ((-7.5, -24.0), 0.11989, 0.003),
+                ((-22.5, -8.0), 0.11993, 0.00308), ((-7.5, 8.0), 0.12027, 0.00325), ((7.5, 24.0), 0.12014, 0.00315),
+                ((22.5, 8.0), 0.11922, 0.00322), ((-22.5, 24.0), 0.12065, 0.00302)]
+    learner = Learner((60.0, 60.0), LearnerSettings(), 0.3, 2)
+    for xy, k, relative_sd in recorded:
+        learner.observe(xy, k, relative_sd * k)
+    assert learner.choice.chosen == "circles:1" and learner.choice.weight < learner.settings.confidence, learner.choice
+    assert learner.choice.runner_up == "ellipse:1"
+    probe = learner.next_probe()
+    assert math.dist(probe, felt) <= 12.0, probe

@@ -23,6 +23,7 @@ MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model'
 MIN_WEIGHT = 0.01  # hypotheses below this weight are left out of the disagreement
 MAX_RIVALS = 4
 CANDIDATE_STRIDE_MM = 1.0  # probes are chosen on a lattice at least this fine
+NEGLIGIBLE_NATS = 1e-3  # a reading the rivals disagree about by less than this tells them apart by nothing
 PREDICTED_SIGMA = 3.0  # never stop right after a reading the chosen fit did not predict within this many sd
 
 
@@ -72,8 +73,29 @@ class Decision:
             return False
         if self._hidden_lump() is not None or abs(self.surprise_sd) > PREDICTED_SIGMA or self._unfelt() is not None:
             return False
+        if not self._settled():
+            return False
         tolerance = self.settings.tolerance_mm
         return all(_sds(lump) <= tolerance for lump in self.lumps())
+
+    def _settled(self) -> bool:
+        """The newest reading moved no reported centre coordinate or radius (axis) by more than a posterior
+        that was right could let it. In a Gaussian posterior a reading z sd from its prediction moves any
+        quantity by at most |z| of that quantity's sd before it (their correlation is at most 1), so a
+        larger move says the sds before it were narrower than the readings bear out: a smooth lump read
+        at a few spots on its edge, whose profile the family only approximates, moved its centre by
+        3 sd on a reading it had predicted within 1 sd, and stopped there 0.6-0.8 mm off with a reported
+        sd of 0.2 mm. A model that just changed (another count or shape) has not settled either."""
+        fit = self.chosen_fit()
+        if fit is None or fit.family.k == 0:
+            return True  # the free-form map or `none`: no centre or radius reported from parameters
+        before = self._fit_before
+        if before is None or before.family != fit.family:
+            return False
+        rows = describe.quantities(before)
+        moved = np.abs(rows @ (fit.theta - before.theta))
+        sd_before = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", rows, before.cov, rows), 0.0))
+        return bool(np.all(moved <= max(1.0, abs(self.surprise_sd)) * sd_before))
 
     def _unexplored(self) -> tuple[float, float] | None:
         """The spot farthest from every reading, when it is farther than `coverage_mm` (`none_coverage_mm`
@@ -211,7 +233,13 @@ class Decision:
         if self.choice is None:
             return self.gp.var[cells]
         if self.choice.weight < self.settings.confidence:
-            return acquisition.disagreement(self._predictions(cells), self._noise_var())
+            score = acquisition.disagreement(self._predictions(cells), self._noise_var())
+            if score.max(initial=0.0) > NEGLIGIBLE_NATS:
+                return score
+            # the rivals predict alike everywhere: nested ones that coincide (an ellipse with equal axes is
+            # the circle) are told apart only by pinning down what the larger one adds, around the lump, so
+            # probe as for the chosen one; scored 0 everywhere, the probes went to the farthest spots instead
+            # and spent the budget there (a low-contrast lump: 32 readings of plain tissue, weight stuck at 0.66)
         fit = self.chosen_fit()
         if not self._adequate():  # the chosen one misses something: where the free-form map disagrees with it
             return acquisition.disagreement([(0.5, *self._prediction(self.choice.chosen, cells)),

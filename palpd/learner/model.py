@@ -57,6 +57,7 @@ class Learner(Decision):
         self.probed: list[tuple[float, float]] = []
         self.choice = None
         self.surprise_sd = 0.0  # how far the last reading fell from what the chosen fit predicted there
+        self._fit_before = None  # the chosen fit before the last reading (decision._settled)
         self._fitted_at = 0
         self._pass = None  # the pass of refits under way (many readings: one step per update)
         self._regions = []
@@ -78,6 +79,7 @@ class Learner(Decision):
         if not self.obs.add(xy, outcome, value, sd_n_per_mm if outcome == "fit" else 0.0):
             return
         self.coverage.add(xy)
+        self._fit_before = None if self.choice is None else self.chosen_fit()  # what the newest reading may move
         self.surprise_sd = self._surprise_of_last()
         own_sd = self.obs.sd[-1] if self.obs.kind[-1] == EXACT else CENSORED_SD
         self.gp.add(xy, self.obs.y[-1], own_sd**2)
