@@ -240,3 +240,49 @@ def test_rivals_that_predict_alike_are_told_apart_around_the_lump_not_at_the_far
     assert learner.choice.runner_up == "ellipse:1"
     probe = learner.next_probe()
     assert math.dist(probe, felt) <= 12.0, probe
+
+
+def test_asking_for_the_estimate_between_readings_changes_nothing_the_learner_decides():
+    """The daemon publishes the estimate after every palpation; a CLI scan asks only at the end. Both must
+    take the same course: reading the estimate (which checks the chosen fit's covariance, posterior.py)
+    between readings may not change the later fits, probes or stop."""
+    from palpd.config import LearnerSettings
+    from palpd.learner.model import Learner
+
+    k_at = lambda p: 0.12 + 0.5 / (1 + (math.dist(p, (-6.0, 9.0)) / 6.0) ** 6)  # noqa: E731
+    courses = []
+    for watched in (False, True):
+        learner = Learner((60.0, 60.0), LearnerSettings(grid_points=41), 0.3, 1)
+        probes = []
+        while len(probes) < 22 and (probe := learner.next_probe(40)) is not None:
+            probes.append(probe)
+            learner.observe(probe, k_at(probe), 0.02 * k_at(probe))
+            if watched:
+                learner.lumps(), learner.posterior_grid()
+        courses.append((probes, [lump.as_dict() for lump in learner.lumps()], learner.model()))
+    assert courses[0] == courses[1]
+
+
+def test_the_lump_whose_edge_no_reading_touched_is_probed_before_a_gap_left_on_another():
+    """Two lumps: the first read all round its edge but for a 135° stretch, the second read only at its centre.
+    The edge to read next is the second's: taken lump by lump, the first lump's gap came first, and with four
+    lumps the budget ran out while the last, never read at its edge, was reported at a third of its radius."""
+    from types import SimpleNamespace
+
+    from palpd.learner import shapes
+    from palpd.learner.coverage import uncovered_edge
+
+    family = shapes.Family("circles", 2, 30.0)
+    theta = np.concatenate([[math.log(0.12), 0.0, 0.0], shapes.make_lump((-12.0, 0.0), 6.0, 6.0, 4.0),
+                            shapes.make_lump((14.0, 5.0), 5.0, 6.0, 4.0)])
+    fit = SimpleNamespace(family=family, theta=theta)
+    # the first lump's edge (6 mm out) read every 45° except from 0° to 135°; the second only at its centre
+    first = [(-12.0 + 6.0 * math.cos(math.radians(a)), 6.0 * math.sin(math.radians(a))) for a in range(180, 360, 45)]
+    readings = np.array([(-12.0, 0.0), (14.0, 5.0), *first])
+    where = uncovered_edge(fit, readings, (60.0, 60.0), 2.0)
+    assert where is not None and math.dist(where, (14.0, 5.0)) == pytest.approx(5.0, abs=1.0), where
+    # once the second lump's edge is read all round, the first one's gap is next
+    second = [(14.0 + 5.0 * math.cos(math.radians(a)), 5.0 + 5.0 * math.sin(math.radians(a))) for a in range(0, 360, 60)]
+    where = uncovered_edge(fit, np.vstack([readings, second]), (60.0, 60.0), 2.0)
+    assert where is not None and math.dist(where, (-12.0, 0.0)) == pytest.approx(6.0, abs=1.0)
+    assert 0.0 < math.degrees(math.atan2(where[1], where[0] + 12.0)) < 135.0, where

@@ -38,7 +38,20 @@ def unconfirmed_centre(fit, readings_xy: np.ndarray, spacing_mm: float) -> np.nd
 
 
 def uncovered_edge(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float) -> np.ndarray | None:
-    """The boundary point in the middle of the first lump's widest unread stretch of edge, or None."""
+    """The boundary point in the middle of the widest unread stretch of edge of any lump, or None. Widest
+    first, not the first lump's: with several lumps and a budget, a lump whose edge no reading has touched
+    (its radius then rests on its model alone) comes before a third of a turn left on another's (four
+    lumps: the first three were closed all round while the fourth, read only at its centre, was reported
+    at a third of its radius)."""
+    widest_gap, where = 0.0, None
+    for gap, point in _edge_gaps(fit, readings_xy, size_mm, spacing_mm):
+        if gap >= MAX_GAP_RAD and gap > widest_gap:
+            widest_gap, where = gap, point
+    return where
+
+
+def _edge_gaps(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float):
+    """For each lump: its widest unread stretch of edge (rad) and the boundary point in its middle."""
     half = np.asarray(size_mm, dtype=float) / 2.0
     for params in _lumps(fit):
         ellipse = fit.family.kind == "ellipses"
@@ -51,12 +64,11 @@ def uncovered_edge(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float) -> 
         outside = steps[np.any(np.abs(_boundary_point(params, ellipse, steps)) > half, axis=1)]
         phases = np.sort(np.concatenate([_phase(params, readings_xy[band], ellipse), outside]))
         if phases.size == 0:
-            return _boundary_point(params, ellipse, 0.0)
+            yield 2.0 * math.pi, _boundary_point(params, ellipse, 0.0)
+            continue
         gaps = np.diff(np.concatenate([phases, [phases[0] + 2.0 * math.pi]]))
         widest = int(np.argmax(gaps))
-        if gaps[widest] >= MAX_GAP_RAD:
-            return _boundary_point(params, ellipse, phases[widest] + 0.5 * gaps[widest])
-    return None
+        yield float(gaps[widest]), _boundary_point(params, ellipse, phases[widest] + 0.5 * gaps[widest])
 
 
 def hidden_lump_spot(excess: np.ndarray, readings_xy: np.ndarray, readings: "Readings",

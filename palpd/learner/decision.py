@@ -242,7 +242,7 @@ class Decision:
             # and spent the budget there (a low-contrast lump: 32 readings of plain tissue, weight stuck at 0.66)
         fit = self.chosen_fit()
         if not self._adequate():  # the chosen one misses something: where the free-form map disagrees with it
-            return acquisition.disagreement([(0.5, *self._prediction(self.choice.chosen, cells)),
+            return acquisition.disagreement([(0.5, *self._moments(fit, cells)),
                                              (0.5, self.gp.mean[cells], self.gp.var[cells])], self._noise_var())
         unfelt = self._unfelt()
         if unfelt is not None:  # over the lump a preferred hypothesis needs and no reading has felt
@@ -255,22 +255,24 @@ class Decision:
             near = coverage.near_edges(fit, xy, self.settings.min_spacing_mm)  # where a centre or radius is read
             # where to probe by the Laplace covariance: its widest directions are where the posterior
             # is still unexplored (checked, they are narrow only along the line that was looked at)
-            raw = self.hypotheses.raw.get(self.choice.chosen, fit)
-            score[near] = acquisition.boundary_gain(raw, xy[near], self._noise_var())
+            score[near] = acquisition.boundary_gain(self.hypotheses.laplace(self.choice.chosen), xy[near],
+                                                    self._noise_var())
             return score
         tau = np.log(self.free_form_map().tau).ravel()[cells]
         return acquisition.straddle(self.gp.mean[cells], self.gp.std()[cells], tau, self.settings.confidence)
 
-    def _prediction(self, name: str, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        fit = self.hypotheses.fits.get(name)
+    def _moments(self, fit: Fit | None, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A hypothesis's predictive mean and variance at the cells (the free-form map's without a fit)."""
         if fit is None:
             return self.gp.mean[cells], self.gp.var[cells]
         mean, var, _ = acquisition.moments(fit, self.grid_xy[cells])
         return mean, var
 
     def _predictions(self, cells: np.ndarray) -> list[tuple[float, np.ndarray, np.ndarray]]:
+        """The leading rivals' predictions, each from its Laplace covariance (hypotheses.laplace)."""
         rivals = sorted(self.choice.weights.items(), key=lambda kv: -kv[1])[:MAX_RIVALS]
-        return [(weight, *self._prediction(name, cells)) for name, weight in rivals if weight >= MIN_WEIGHT]
+        return [(weight, *self._moments(self.hypotheses.laplace(name), cells)) for name, weight in rivals
+                if weight >= MIN_WEIGHT]
 
     def _farthest_from_probes(self) -> tuple[float, float] | None:
         free = ~self.blocked

@@ -122,6 +122,12 @@ class Hypotheses:
             fit = self.fits[name] = replace(fit, cov=posterior.checked_cov(fit, obs, self.priors(obs)), checked=True)
         return fit
 
+    def laplace(self, name: str) -> Fit | None:
+        """The fit of `name` with its Laplace covariance, whether or not it has been checked since: what the
+        rivals are compared by (each the same way, whichever of them was asked for), and where to probe."""
+        fit = self.fits.get(name)
+        return self.raw.get(name, fit) if fit is not None and fit.checked else fit
+
     @staticmethod
     def _name_of(k: int) -> str:
         return "none" if k == 0 else f"circles:{k}"

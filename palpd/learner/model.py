@@ -76,16 +76,21 @@ class Learner(Decision):
         if outcome is None:
             outcome = "fit" if _usable(stiffness_n_per_mm) else "rejected"
         value = stiffness_n_per_mm if outcome == "fit" else bound_n_per_mm
+        fit_before = None if self.choice is None else self.chosen_fit()  # what the newest reading may move
         if not self.obs.add(xy, outcome, value, sd_n_per_mm if outcome == "fit" else 0.0):
             return
         self.coverage.add(xy)
-        self._fit_before = None if self.choice is None else self.chosen_fit()  # what the newest reading may move
+        self._fit_before = fit_before
         self.surprise_sd = self._surprise_of_last()
         own_sd = self.obs.sd[-1] if self.obs.kind[-1] == EXACT else CENSORED_SD
         self.gp.add(xy, self.obs.y[-1], own_sd**2)
         if self._refit_pays():
             self._refit()
         self._weigh()
+        # The chosen fit's covariance is checked now, against the readings it was fitted to, not on first use:
+        # a scan whose estimate is read between readings (the daemon publishes one after every palpation)
+        # would otherwise have it checked against other readings than one left alone, and take another course.
+        self.chosen_fit()
 
     def _refit_pays(self) -> bool:
         n = self.gp.n
