@@ -146,7 +146,7 @@ def _half_nat_point(objective, base: float, theta: np.ndarray, step: np.ndarray,
 
 def _room(theta: np.ndarray, step: np.ndarray, lo, hi) -> float:
     """How many steps fit before the prior box is left."""
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a step of ~1e-308 has room without end
         up = np.where(step > 0, (hi - theta) / step, np.inf)
         down = np.where(step < 0, (lo - theta) / step, np.inf)
     return float(max(0.0, np.nanmin(np.minimum(up, down))))
