@@ -286,3 +286,36 @@ def test_the_lump_whose_edge_no_reading_touched_is_probed_before_a_gap_left_on_a
     where = uncovered_edge(fit, np.vstack([readings, second]), (60.0, 60.0), 2.0)
     assert where is not None and math.dist(where, (-12.0, 0.0)) == pytest.approx(6.0, abs=1.0)
     assert 0.0 < math.degrees(math.atan2(where[1], where[0] + 12.0)) < 135.0, where
+
+
+
+def test_a_free_form_map_that_needs_more_noise_than_readings_have_is_probed_on_its_boundary():
+    """Thirteen first readings (recorded from a simulated active scan of the measured half-stiff map, seed 0):
+    the free-form map is chosen and needs more than twice the readings' noise (the map's own texture), so it
+    is not adequate, and there is nothing more flexible to compare it with. The next probe goes where the
+    map is least sure which side of its boundary a spot lies. Scored by the free-form's disagreement with
+    itself (0 at every cell) it went to the spot farthest from every probe, the tissue's edge: a measured
+    map's corners and edges were read while its boundary stayed as unsure."""
+    from scipy.stats import norm
+
+    from palpd.config import Settings
+    from palpd.learner.planner import make_learner
+
+    recorded = [((-7.5, -8.0), 0.11577, 0.000371), ((-22.5, -24.0), 0.12033, 0.000379),
+                ((7.5, -24.0), 0.27827, 0.000367), ((22.5, -8.0), 0.29931, 0.000414), ((7.5, 8.0), 0.29968, 0.000389),
+                ((-7.5, 24.0), 0.26892, 0.000381), ((-22.5, 8.0), 0.12042, 0.000361), ((22.5, 24.0), 0.29702, 0.000388),
+                ((-9.0, -7.0), 0.12345, 0.000376), ((-6.0, -9.0), 0.12138, 0.000353), ((-6.0, -7.0), 0.11917, 0.000354),
+                ((22.5, -24.0), 0.30342, 0.000370), ((-22.5, 24.0), 0.12072, 0.000370)]
+    learner = make_learner(Settings(), (60.0, 60.0), 0)
+    for xy, k, sd in recorded:
+        learner.observe(xy, k, sd)
+    assert learner.choice.chosen == "free-form" and learner.choice.weight >= 0.9 and not learner._adequate()
+    m = learner.free_form_map()
+
+    def stiff_probability(xy):
+        row, col = int(np.argmin(np.abs(m.ys - xy[1]))), int(np.argmin(np.abs(m.xs - xy[0])))
+        cell = row * len(m.xs) + col
+        return norm.cdf((learner.gp.mean[cell] - math.log(m.tau[row, col])) / learner.gp.std()[cell])
+
+    probe = learner.next_probe(40)
+    assert 0.25 <= stiff_probability(probe) <= 0.75, probe  # before: (-30, -8), the farthest spot, at 0.21

@@ -241,7 +241,10 @@ class Decision:
             # probe as for the chosen one; scored 0 everywhere, the probes went to the farthest spots instead
             # and spent the budget there (a low-contrast lump: 32 readings of plain tissue, weight stuck at 0.66)
         fit = self.chosen_fit()
-        if not self._adequate():  # the chosen one misses something: where the free-form map disagrees with it
+        # the chosen parametric fit misses something: where the free-form map disagrees with it. (The free-form
+        # map itself has nothing more flexible to be compared with: scored against itself every cell was 0 and
+        # the probes went to the tissue's corners, its boundary left as unsure as it was.)
+        if fit is not None and not self._adequate():
             return acquisition.disagreement([(0.5, *self._moments(fit, cells)),
                                              (0.5, self.gp.mean[cells], self.gp.var[cells])], self._noise_var())
         unfelt = self._unfelt()
