@@ -100,8 +100,11 @@ class ServoProcess:
     def _next_message(self):
         """The next command; until it comes, tick (wall clock) or wait with a heartbeat (virtual time)."""
         if not self.realtime:
+            # The robot time the parent reads stays the last tick's: the virtual clock has run on by the
+            # loop's last sleep, and whether a beat had come before the parent asked made a scan's
+            # robot time differ by milliseconds from run to run.
             while not self.conn.poll(IDLE_BEAT_S):
-                self.ring.beat(self.bench.clock.now(), self.servo.timing.ticks, self.servo.timing.overruns)
+                self.ring.beat(None, self.servo.timing.ticks, self.servo.timing.overruns)
             return self.conn.recv()
         while not self.conn.poll(0):
             try:

@@ -69,11 +69,13 @@ class SampleRing:
         self._index = i + 1
         self._words[_INDEX] = i + 1  # after the slot: a reader never sees a slot before it is complete
 
-    def beat(self, now_s: float, ticks: int, overruns: int) -> None:
+    def beat(self, now_s: float | None, ticks: int, overruns: int) -> None:
+        """A heartbeat; now_s None keeps the time the last tick wrote."""
         self._beats += 1
         words = self._words
         words[_BEAT], words[_TICKS], words[_OVERRUNS] = self._beats, ticks, overruns
-        self._now[0] = now_s
+        if now_s is not None:
+            self._now[0] = now_s
 
     def is_set(self) -> bool:
         """The e-stop input (the loop polls it like a threading.Event)."""
