@@ -33,6 +33,7 @@ class LumpEstimate:
     angle_sd_deg: float | None = None
     edge_mm: float | None = None  # where modelled: 75 % to 25 % of the lump's height along a radius
     edge_sd_mm: float | None = None
+    boundary_sd_mm: float | None = None  # free-form: the boundary's position sd, RMS along it
 
     def as_dict(self) -> dict:
         out = {
@@ -45,7 +46,7 @@ class LumpEstimate:
         for name in ("axes_mm", "axes_sd_mm"):
             if getattr(self, name) is not None:
                 out[name] = [round(v, 3) for v in getattr(self, name)]
-        for name in ("angle_deg", "angle_sd_deg", "edge_mm", "edge_sd_mm"):
+        for name in ("angle_deg", "angle_sd_deg", "edge_mm", "edge_sd_mm", "boundary_sd_mm"):
             if getattr(self, name) is not None:
                 out[name] = round(getattr(self, name), 3)
         return out

@@ -121,6 +121,8 @@ class LumpMsg(BaseModel):
     """Where modelled: the edge width, 75 % to 25 % of the lump's height along a radius."""
     edge_sd_mm: Optional[float] = None
     """Where modelled: its standard deviation."""
+    boundary_sd_mm: Optional[float] = None
+    """Free-form regions only: the sd of the boundary's position across itself, RMS along it."""
 
 
 class ModelChoice(BaseModel):

@@ -289,5 +289,8 @@ class Decision:
 
 
 def _sds(lump: LumpEstimate) -> float:
+    """The largest sd of what is reported: centre, radius, axes, and for a free-form region its boundary."""
     sds = [lump.center_sd_mm, lump.radius_sd_mm, *(lump.axes_sd_mm or ())]
+    if lump.boundary_sd_mm is not None:
+        sds.append(lump.boundary_sd_mm)
     return max(sds)

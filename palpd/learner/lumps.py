@@ -3,9 +3,10 @@
 Each region that an observed stiff point supports (the model alone never makes
 a lump) becomes a lump with its 50 % boundary as a closed polygon, its centroid
 and equal-area radius (a free-form region has no circle to report), and
-uncertainties from how well the boundary is pinned down: σ/|∇μ| across it,
-through a circle fitted to the boundary. Lumps sit in tissue: when the stiff part
-runs along the whole edge of the area, it is the tissue and there is no lump.
+uncertainties from how well the boundary is pinned down: δ = σ/|∇μ| across it,
+carried to the centroid and the area of that region. Lumps sit in tissue: when the
+stiff part runs along the whole edge of the area, it is the tissue and there is
+no lump.
 """
 from __future__ import annotations
 
@@ -108,15 +109,13 @@ def _one_lump(m: Map, region: np.ndarray, others: np.ndarray) -> LumpEstimate | 
     polygon = _boundary(m, region, others)
     if polygon is None:
         return None
-    inside = _off_edge(m, polygon[:-1])
-    fit_points = inside if len(inside) >= 5 else polygon[:-1]
-    _, circle_radius, jac = _circle_fit(fit_points)
-    centre_sd, radius_sd = _fit_uncertainty(m, fit_points, jac, circle_radius)
     # A free-form region has no circle to report: its centroid and equal-area radius (within the area).
     gx, gy = np.meshgrid(m.xs, m.ys)
-    radius = math.sqrt(np.count_nonzero(region) / math.pi) * m.cell_mm
-    return LumpEstimate((float(gx[region].mean()), float(gy[region].mean())), radius, centre_sd, radius_sd,
-                        polygon.tolist())
+    centre = np.array([gx[region].mean(), gy[region].mean()])
+    area = np.count_nonzero(region) * m.cell_mm**2
+    centre_sd, radius_sd, boundary_sd = _region_uncertainty(m, polygon, centre, area)
+    return LumpEstimate((float(centre[0]), float(centre[1])), math.sqrt(area / math.pi), centre_sd, radius_sd,
+                        polygon.tolist(), boundary_sd_mm=boundary_sd)
 
 
 def _boundary(m: Map, region: np.ndarray, others: np.ndarray) -> np.ndarray | None:
@@ -139,39 +138,34 @@ def _boundary(m: Map, region: np.ndarray, others: np.ndarray) -> np.ndarray | No
     return np.clip(line, [m.xs[0], m.ys[0]], [m.xs[-1], m.ys[-1]])
 
 
-def _off_edge(m: Map, points: np.ndarray) -> np.ndarray:
-    margin = 0.5 * m.cell_mm
-    keep = ((points[:, 0] > m.xs[0] + margin) & (points[:, 0] < m.xs[-1] - margin)
-            & (points[:, 1] > m.ys[0] + margin) & (points[:, 1] < m.ys[-1] - margin))
-    return points[keep]
+def _region_uncertainty(m: Map, polygon: np.ndarray, centre: np.ndarray, area: float) -> tuple[float, float, float]:
+    """The sd of the region's centroid and equal-area radius, and the RMS sd of its boundary's position.
 
-
-def _circle_fit(points: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
-    """Algebraic (Kåsa) circle fit; returns centre, radius and the geometric residuals' Jacobian."""
-    a = np.column_stack([2.0 * points, np.ones(len(points))])
-    b = (points**2).sum(axis=1)
-    (cx, cy, c), *_ = np.linalg.lstsq(a, b, rcond=None)
-    centre = np.array([cx, cy])
-    radius = math.sqrt(max(c + cx * cx + cy * cy, 0.0))
-    offsets = points - centre
-    dist = np.maximum(np.linalg.norm(offsets, axis=1), 1e-9)
-    jac = np.column_stack([-offsets / dist[:, None], -np.ones(len(points))])
-    return centre, radius, jac
-
-
-def _fit_uncertainty(m: Map, points: np.ndarray, jac: np.ndarray, radius: float) -> tuple[float, float]:
-    """Centre and radius sd from the boundary's position sd, δ = σ / |∇(μ − τ)|, along it."""
-    gy, gx = np.gradient(m.mean - m.tau, m.cell_mm)
-    cols = np.clip(np.rint((points[:, 0] - m.xs[0]) / m.cell_mm).astype(int), 0, len(m.xs) - 1)
-    rows = np.clip(np.rint((points[:, 1] - m.ys[0]) / m.cell_mm).astype(int), 0, len(m.ys) - 1)
-    slope = np.maximum(np.hypot(gx[rows, cols], gy[rows, cols]), 1e-12)
-    delta2 = float(np.mean(np.minimum(m.std[rows, cols] / slope, 2.0 * radius + m.cell_mm) ** 2))
-    # Neighbouring vertices share their probes: about one independent look per length scale of boundary.
-    independent = max(2.0 * math.pi * radius / m.length_mm, 1.0)
-    try:
-        cov = np.linalg.inv(jac.T @ jac) * len(points) * delta2 / independent
-    except np.linalg.LinAlgError:
-        cov = np.eye(3) * delta2
+    The boundary inside the area moves across itself by δ = σ / |∇(μ − τ)| (capped at the area's size),
+    neighbouring stretches together: about one independent move per kernel length ℓ of boundary. A move
+    δ over a stretch ds changes the area by δ·ds and the centroid by (p − c)·δ·ds / A, so
+    Var A = ℓ Σ δ² ds and Var c = ℓ Σ |p − c|² δ² ds / (2 A²) per axis, and r = √(A/π) moves by
+    δA / (2πr). For a circle these are a circle fit's δ/√N and δ·√(2/N), N = 2πr/ℓ; but a circle fitted
+    to the boundary (what was reported before) has no centre to speak of where the boundary is nearly
+    straight, as across a stiff half of the tissue. Stretches along the area's edge do not move."""
     floor = m.cell_mm / math.sqrt(12.0)  # the grid cannot say better than this
-    centre_sd = math.sqrt(max(0.5 * (cov[0, 0] + cov[1, 1]), 0.0))
-    return max(centre_sd, floor), max(math.sqrt(max(cov[2, 2], 0.0)), floor)
+    a, b = polygon[:-1], polygon[1:]
+    mid, ds = 0.5 * (a + b), np.hypot(*(b - a).T)
+    margin = 0.5 * m.cell_mm
+    moving = ((mid[:, 0] > m.xs[0] + margin) & (mid[:, 0] < m.xs[-1] - margin)
+              & (mid[:, 1] > m.ys[0] + margin) & (mid[:, 1] < m.ys[-1] - margin) & (ds > 0))
+    if not moving.any():
+        return floor, floor, floor
+    mid, ds = mid[moving], ds[moving]
+    gy, gx = np.gradient(m.mean - m.tau, m.cell_mm)
+    cols = np.clip(np.rint((mid[:, 0] - m.xs[0]) / m.cell_mm).astype(int), 0, len(m.xs) - 1)
+    rows = np.clip(np.rint((mid[:, 1] - m.ys[0]) / m.cell_mm).astype(int), 0, len(m.ys) - 1)
+    slope = np.maximum(np.hypot(gx[rows, cols], gy[rows, cols]), 1e-12)
+    span = max(m.xs[-1] - m.xs[0], m.ys[-1] - m.ys[0])
+    spread = np.minimum(m.std[rows, cols] / slope, span) ** 2 * ds  # δ² ds
+    length = min(m.length_mm, float(ds.sum()))  # a boundary shorter than ℓ moves as one
+    area_sd = math.sqrt(length * float(spread.sum()))
+    centre_sd = math.sqrt(length * float(np.sum((mid - centre) ** 2, axis=1) @ spread) / 2.0) / area
+    radius_sd = area_sd / (2.0 * math.pi * math.sqrt(area / math.pi))
+    boundary_sd = math.sqrt(float(spread.sum() / ds.sum()))
+    return max(centre_sd, floor), max(radius_sd, floor), max(boundary_sd, floor)
