@@ -1,6 +1,7 @@
 """Active scans with default settings on every scene in config/scenes/ (or the ones named), as a table.
 
     .venv/bin/python scripts/active_scenes.py [--seed N | --seeds 0,1,2] [--raster-too] [SCENE ...]
+    .venv/bin/python scripts/active_scenes.py --random N [--random-seed S] [--raster-too]
 
 Each row is `palpd scan --scene SCENE --strategy active` with default settings (simulated time, the
 real control and fit code, in this process): palpations, robot time, the verdict and the model the
@@ -8,10 +9,16 @@ evidence chose (with its weight), and the errors against the scene's truth. With
 scan of the same number of palpations is scored beside it (its §3.4 estimate). With --seeds, every
 scene once per seed (the scan's and the simulator's), then one summary row per scene: how often the
 count was right (every lump found, none false), palpations (median and most), the worst errors and IoU.
+With --random, N scenes none of which ships, drawn from --random-seed (tissue size and stiffness, one to
+three lumps that do not touch, of any radius, depth and contrast in the ranges below, any sensor noise):
+the same table and one summary row, so that what the learner decides is tried beyond the scenes it was
+developed on.
 """
 from __future__ import annotations
 
 import argparse
+import math
+import random
 import sys
 from pathlib import Path
 
@@ -19,7 +26,7 @@ from palpd.threads import pin_blas_to_one_thread
 
 pin_blas_to_one_thread()
 
-from drivers.sim.scene import load_scene  # noqa: E402
+from drivers.sim.scene import Scene, load_scene  # noqa: E402
 from palpd import metrics  # noqa: E402
 from palpd.bench import open_simulated_bench  # noqa: E402
 from palpd.config import Settings  # noqa: E402
@@ -66,7 +73,11 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--seeds", default=None, help="comma-separated seeds: every scene once per seed, and a summary")
     parser.add_argument("--raster-too", action="store_true")
+    parser.add_argument("--random", type=int, default=0, metavar="N", help="N random scenes instead of the shipped ones")
+    parser.add_argument("--random-seed", type=int, default=0)
     args = parser.parse_args()
+    if args.random:
+        return tried_beyond(random_scenes(args.random, args.random_seed), args.raster_too)
     names = args.scenes or sorted(p.stem for p in SCENES.glob("*.toml"))
     if args.seeds:
         return sweep(names, [int(s) for s in args.seeds.split(",")])
@@ -94,6 +105,51 @@ def sweep(names: list[str], seeds: list[int]) -> int:
           "worst radius error (mm) | worst IoU |")
     print("|---|---|---|---|---|---|---|---|")
     print("\n".join(rows))
+    return 0
+
+
+def random_scenes(count: int, seed: int) -> list[Scene]:
+    """Scenes drawn at random: tissue 50-80 mm across and 0.05-0.4 N/mm; one to three lumps 3-12 mm in
+    radius, 1-8 mm deep, 2.5-8 times as stiff, wholly on the tissue and at least 6 mm apart edge to edge
+    (touching lumps are a shipped scene of their own); sensor noise 0.005-0.06 N."""
+    rng = random.Random(seed)
+    scenes = []
+    for i in range(count):
+        size = rng.choice([50.0, 60.0, 80.0])
+        tissue_k = math.exp(rng.uniform(math.log(0.05), math.log(0.4)))
+        lumps: list[dict] = []
+        for _ in range(rng.choices([1, 2, 3], [0.5, 0.3, 0.2])[0]):
+            for _attempt in range(100):
+                radius = rng.uniform(3.0, 12.0)
+                centre = [rng.uniform(-size / 2 + radius, size / 2 - radius) for _ in range(2)]
+                if all(math.dist(centre, other["center_mm"]) > radius + other["radius_mm"] + 6.0 for other in lumps):
+                    lumps.append({"center_mm": centre, "radius_mm": radius, "depth_mm": rng.uniform(1.0, 8.0),
+                                  "stiffness_n_per_mm": tissue_k * rng.uniform(2.5, 8.0)})
+                    break
+        scenes.append(Scene(name=f"random-{seed}-{i}", seed=seed * 1000 + i,
+                            tissue={"size_mm": [size, size], "stiffness_n_per_mm": tissue_k}, lump=lumps,
+                            sensor={"noise_n": rng.choice([0.005, 0.01, 0.03, 0.06]), "tilt": True}))
+    return scenes
+
+
+def tried_beyond(scenes: list[Scene], raster_too: bool) -> int:
+    print(HEADER)
+    runs = []
+    for scene in scenes:
+        k = scene.tissue.stiffness_n_per_mm
+        lumps = ", ".join(f"r {lump.radius_mm:.1f} mm {lump.depth_mm:.1f} deep ×{lump.stiffness_n_per_mm / k:.1f}"
+                          for lump in scene.lump)
+        name = (f"{scene.name}: {scene.tissue.size_mm[0]:.0f} mm, {k:.2f} N/mm, "
+                f"noise {scene.sensor.noise_n} N; {lumps}")
+        runs.append(scan(scene, "active", Settings().learner.max_palpations, 0))
+        print(row(name, *runs[-1]), flush=True)
+        if raster_too:
+            raster, rm = scan(scene, "raster", runs[-1][0]["palpations"], 0)
+            print(row(f"{scene.name} (raster, same count)", raster, rm), flush=True)
+    print("\n| scenes | count right | palpations (median) | (most) | undetermined | worst centre error (mm) | "
+          "worst radius error (mm) | worst IoU |")
+    print("|---|---|---|---|---|---|---|---|")
+    print(summary(f"{len(scenes)} random", runs))
     return 0
 
 

@@ -79,3 +79,25 @@ def test_cli_reports_a_bad_scene_in_one_line(tmp_path, run_cli):
     assert_one_line_error(result, str(path), "lump.0.center_mm")
     result = run_cli("scan", "--scene", tmp_path / "absent.toml")
     assert_one_line_error(result, "absent.toml", "not found")
+
+
+def test_the_random_scenes_the_learner_is_tried_on_are_valid_reproducible_and_keep_their_lumps_apart():
+    """scripts/active_scenes.py --random N: scenes beyond the shipped ones, the same for the same seed."""
+    import importlib.util
+    import math
+
+    spec = importlib.util.spec_from_file_location("active_scenes", ROOT / "scripts" / "active_scenes.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    scenes = script.random_scenes(30, 5)
+    assert [s.model_dump() for s in scenes] == [s.model_dump() for s in script.random_scenes(30, 5)]
+    assert [s.model_dump() for s in scenes] != [s.model_dump() for s in script.random_scenes(30, 6)]
+    assert {len(s.lump) for s in scenes} == {1, 2, 3}
+    for scene in scenes:
+        half = scene.tissue.size_mm[0] / 2
+        for i, lump in enumerate(scene.lump):
+            assert 3.0 <= lump.radius_mm <= 12.0 and 1.0 <= lump.depth_mm <= 8.0
+            assert max(map(abs, lump.center_mm)) <= half - lump.radius_mm  # wholly on the tissue
+            assert 2.5 <= lump.stiffness_n_per_mm / scene.tissue.stiffness_n_per_mm <= 8.0
+            for other in scene.lump[:i]:
+                assert math.dist(lump.center_mm, other.center_mm) > lump.radius_mm + other.radius_mm + 6.0
