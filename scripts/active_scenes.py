@@ -34,6 +34,8 @@ from palpd.scan import plan, run_scan  # noqa: E402
 
 HEADER = ("| scene | palpations | robot time | verdict | model (weight) | found | false | centre error | radius error "
           "| IoU |\n|---|---|---|---|---|---|---|---|---|---|")
+SUMMARY_HEADER = ("\n| scene | count right | palpations (median) | (most) | undetermined | worst centre error (mm) "
+                  "| worst radius error (mm) | worst IoU |\n|---|---|---|---|---|---|---|---|")
 SCENES = Path(__file__).resolve().parent.parent / "config" / "scenes"
 
 
@@ -101,9 +103,7 @@ def sweep(names: list[str], seeds: list[int]) -> int:
         for seed, (report, m) in zip(seeds, runs):
             print(row(f"{name} (seed {seed})", report, m), flush=True)
         rows.append(summary(name, runs))
-    print("\n| scene | count right | palpations (median) | (most) | undetermined | worst centre error (mm) | "
-          "worst radius error (mm) | worst IoU |")
-    print("|---|---|---|---|---|---|---|---|")
+    print(SUMMARY_HEADER)
     print("\n".join(rows))
     return 0
 
@@ -146,9 +146,7 @@ def tried_beyond(scenes: list[Scene], raster_too: bool) -> int:
         if raster_too:
             raster, rm = scan(scene, "raster", runs[-1][0]["palpations"], 0)
             print(row(f"{scene.name} (raster, same count)", raster, rm), flush=True)
-    print("\n| scenes | count right | palpations (median) | (most) | undetermined | worst centre error (mm) | "
-          "worst radius error (mm) | worst IoU |")
-    print("|---|---|---|---|---|---|---|---|")
+    print(SUMMARY_HEADER)
     print(summary(f"{len(scenes)} random", runs))
     return 0
 

@@ -38,6 +38,12 @@ class Map:
     def cell_mm(self) -> float:
         return float(self.xs[1] - self.xs[0]) if len(self.xs) > 1 else 1.0
 
+    def at(self, field: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """A (ny, nx) field's values at the cells nearest the points (n, 2)."""
+        cols = np.clip(np.rint((xy[:, 0] - self.xs[0]) / self.cell_mm).astype(int), 0, len(self.xs) - 1)
+        rows = np.clip(np.rint((xy[:, 1] - self.ys[0]) / self.cell_mm).astype(int), 0, len(self.ys) - 1)
+        return field[rows, cols]
+
 
 def find_lumps(m: Map, stiff_xy: np.ndarray) -> list[LumpEstimate]:
     """Lumps where the map says P > 0.5, each backed by at least one observed stiff point."""
@@ -66,9 +72,7 @@ def regions_of(m: Map, stiff_xy: np.ndarray, stiff_k: np.ndarray, tissue_n_per_m
 
 
 def _inside(m: Map, region: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    cols = np.clip(np.rint((xy[:, 0] - m.xs[0]) / m.cell_mm).astype(int), 0, len(m.xs) - 1)
-    rows = np.clip(np.rint((xy[:, 1] - m.ys[0]) / m.cell_mm).astype(int), 0, len(m.ys) - 1)
-    return region[rows, cols]
+    return m.at(region, xy)
 
 
 def _stretch(cov: np.ndarray) -> tuple[float, float]:
@@ -100,9 +104,7 @@ def _supported_labels(m: Map, labels: np.ndarray, stiff_xy: np.ndarray) -> set[i
     if len(stiff_xy) == 0:
         return set()
     near = ndimage.grey_dilation(labels, footprint=np.ones((5, 5), dtype=bool))  # a probe a cell or two outside
-    cols = np.clip(np.rint((stiff_xy[:, 0] - m.xs[0]) / m.cell_mm).astype(int), 0, len(m.xs) - 1)
-    rows = np.clip(np.rint((stiff_xy[:, 1] - m.ys[0]) / m.cell_mm).astype(int), 0, len(m.ys) - 1)
-    return {int(v) for v in near[rows, cols] if v > 0}
+    return {int(v) for v in m.at(near, stiff_xy) if v > 0}
 
 
 def _one_lump(m: Map, region: np.ndarray, others: np.ndarray) -> LumpEstimate | None:
@@ -158,11 +160,9 @@ def _region_uncertainty(m: Map, polygon: np.ndarray, centre: np.ndarray, area: f
         return floor, floor, floor
     mid, ds = mid[moving], ds[moving]
     gy, gx = np.gradient(m.mean - m.tau, m.cell_mm)
-    cols = np.clip(np.rint((mid[:, 0] - m.xs[0]) / m.cell_mm).astype(int), 0, len(m.xs) - 1)
-    rows = np.clip(np.rint((mid[:, 1] - m.ys[0]) / m.cell_mm).astype(int), 0, len(m.ys) - 1)
-    slope = np.maximum(np.hypot(gx[rows, cols], gy[rows, cols]), 1e-12)
+    slope = np.maximum(np.hypot(m.at(gx, mid), m.at(gy, mid)), 1e-12)
     span = max(m.xs[-1] - m.xs[0], m.ys[-1] - m.ys[0])
-    spread = np.minimum(m.std[rows, cols] / slope, span) ** 2 * ds  # δ² ds
+    spread = np.minimum(m.at(m.std, mid) / slope, span) ** 2 * ds  # δ² ds
     length = min(m.length_mm, float(ds.sum()))  # a boundary shorter than ℓ moves as one
     area_sd = math.sqrt(length * float(spread.sum()))
     centre_sd = math.sqrt(length * float(np.sum((mid - centre) ** 2, axis=1) @ spread) / 2.0) / area
