@@ -6,7 +6,7 @@ import random
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, Phase, given, settings as hsettings, strategies as st
+from hypothesis import HealthCheck, Phase, example, given, settings as hsettings, strategies as st
 
 from conftest import SCENES
 from drivers.sim.scene import Scene, load_scene
@@ -74,6 +74,9 @@ def check_honest(probe, k, n, b):
            phases=[Phase.explicit, Phase.reuse, Phase.generate])
 @given(noise_n=st.floats(0.001, 0.3), log_k=st.floats(math.log(0.005), math.log(50.0)), n=st.floats(1.0, 2.0),
        b=st.sampled_from([0.0, 0.01]), seed=st.integers(0, 1000))
+# found by this test: soft damped tissue whose press slowed 40 %, read by a power law whose misfit runs over
+# hundreds of samples (lag-one ρ only 0.33): 0.56 ± 0.023 N/mm against 0.44 until the long-run variance counted
+@example(noise_n=0.3, log_k=-2.9456357392431016, n=1.88348743750813, b=0.01, seed=654)
 def test_any_noise_and_tissue_palpated_through_the_simulator_gives_an_honest_reading(noise_n, log_k, n, b, seed):
     k = math.exp(log_k)
     scene = Scene(name="extreme", seed=seed, tissue={"stiffness_n_per_mm": k, "exponent": n, "damping_n_s_per_mm": b},

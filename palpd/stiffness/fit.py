@@ -92,16 +92,26 @@ def _covariance(model: Model, theta, d, rate, rss: float) -> np.ndarray:
 
 
 def _serial_inflation(residual: np.ndarray) -> float:
-    """How much wider the parameters' variance is when neighbouring residuals move together (AR(1): (1 + ρ) /
-    (1 - ρ), ρ the lag-one autocorrelation, never below 1). A sensor's white noise leaves ρ ≈ 0; a press that
+    """How much wider the parameters' variance is when neighbouring residuals move together: the residuals'
+    long-run variance over their variance, never below 1. A sensor's white noise leaves it ≈ 1; a press that
     chatters on a stiff spot, or a model that misses the trace's shape, does not, and the plain least-squares
-    sd then trusts 126 samples as if independent: 10.6 ± 0.30 N/mm read on a 12 N/mm lump (ρ = 0.71)."""
+    sd then trusts 126 samples as if independent: 10.6 ± 0.30 N/mm read on a 12 N/mm lump (lag-one ρ = 0.71).
+
+    Two estimates of the same ratio, the larger kept: AR(1)'s (1 + ρ) / (1 − ρ), right for chatter whose
+    correlation dies geometrically, and the Bartlett-weighted sum of autocorrelations over √n lags (Newey–West),
+    right for a misfit that runs over a few hundred samples with a lag-one ρ of only 0.33 (a power law read on
+    soft, damped tissue whose press slowed 40 %: 0.56 ± 0.023 N/mm against 0.43, inflation 2.0 by AR(1), 5.6
+    by the sum)."""
     if residual.size < 3:
         return 1.0
     denominator = float(residual @ residual)
-    rho = float(residual[1:] @ residual[:-1]) / denominator if denominator > 0 else 0.0
-    rho = min(max(rho, 0.0), 0.95)
-    return (1.0 + rho) / (1.0 - rho)
+    if denominator <= 0:
+        return 1.0
+    lags = int(math.sqrt(residual.size))
+    rho = [float(residual[lag:] @ residual[:-lag]) / denominator for lag in range(1, lags + 1)]
+    lag_one = min(max(rho[0], 0.0), 0.95)
+    bartlett = 1.0 + 2.0 * sum((1.0 - lag / (lags + 1.0)) * r for lag, r in enumerate(rho, start=1))
+    return max((1.0 + lag_one) / (1.0 - lag_one), bartlett, 1.0)
 
 
 def _numeric_jacobian(func, theta: np.ndarray) -> np.ndarray:
