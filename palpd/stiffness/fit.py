@@ -11,6 +11,7 @@ from scipy.optimize import least_squares
 from palpd.stiffness.models import LINEAR_OFFSET, Model, initial_guess
 from palpd.stiffness.samples import FitRejected, Samples, check_rise, prepare
 
+BOUND_TOL = 1e-6  # a nonlinear model's parameter this close to its bound (scaled units) sits on it
 LONG_RUN_SIGNIFICANCE = 3.0  # sds of white noise's own spread the long-run sum must clear to count
 
 
@@ -51,6 +52,7 @@ def fit_model(model: Model, samples: Samples, reference_depth_mm: float) -> Mode
         return float(model.tangent(physical(t), reference_depth_mm))
 
     params = physical(theta)
+    _check_reference_in_data(model, params, samples, reference_depth_mm)
     jac_params = _numeric_jacobian(physical, theta)
     se = np.sqrt(np.maximum(np.diag(jac_params @ cov @ jac_params.T), 0.0))
     grad_k = _numeric_jacobian(lambda t: np.array([stiffness(t)]), theta)
@@ -59,6 +61,19 @@ def fit_model(model: Model, samples: Samples, reference_depth_mm: float) -> Mode
         raise FitRejected(f"model {model.name} gave no finite stiffness", "not_converged")
     return ModelFit(model.name, _named(model, params), _named(model, se),
                     math.sqrt(rss / d.size) * samples.force_scale_n, samples.n, rss, k_ref, k_se, reference_depth_mm)
+
+
+def _check_reference_in_data(model: Model, params: np.ndarray, samples: Samples, reference_depth_mm: float) -> None:
+    """A model with an onset reads its tangent at the reference indentation; where its onset puts the first
+    sample already deeper than that, the tangent would be read where it has no data (soft damped tissue whose
+    press slowed: an exponential put its onset 5.2 mm before the contact the hinge found and read 0.0008 ±
+    0.0002 N/mm on 0.12, its amplitude and onset trading with nothing in between to tell them apart)."""
+    if "delta_mm" not in model.params:
+        return
+    first_mm = float(samples.depth_mm.min()) + float(params[model.params.index("delta_mm")])
+    if first_mm > reference_depth_mm:
+        raise FitRejected(f"model {model.name} puts its first sample {first_mm:.2f} mm in, past the "
+                          f"{reference_depth_mm:g} mm reference indentation", "not_converged")
 
 
 def _named(model: Model, values) -> dict[str, float]:
@@ -84,6 +99,14 @@ def _solve_nonlinear(model: Model, d, f, rate) -> np.ndarray:
             best, best_cost = result.x, result.cost
     if best is None:
         raise FitRejected(f"model {model.name} did not converge", "not_converged")
+    pinned = [name for name, value, lo, hi in zip(model.params, best, lower, upper)
+              if math.isclose(value, lo, abs_tol=BOUND_TOL * (1.0 + abs(lo)))
+              or math.isclose(value, hi, abs_tol=BOUND_TOL * (1.0 + abs(hi)))]
+    if pinned:
+        # the likelihood still rises past the box: no optimum inside, so no curvature to read an sd from (soft
+        # damped tissue whose press slowed: an exponential with its onset 5.2 mm before contact read 0.0008
+        # ± 0.0002 N/mm on 0.12, its tangent taken where it had no data)
+        raise FitRejected(f"model {model.name} ran to the edge of its parameters ({', '.join(pinned)})", "not_converged")
     return best
 
 
