@@ -79,6 +79,8 @@ def check_honest(probe, k, n, b):
 @example(noise_n=0.3, log_k=-2.9456357392431016, n=1.88348743750813, b=0.01, seed=654)
 # and: an exponential chosen by BIC 2.3 over the power law it could not exclude, which read the slope 4 times less surely
 @example(noise_n=0.0980665, log_k=-3.4279241847715376, n=1.708769841848929, b=0.0, seed=273)
+# and: damping that reversed the simulated tip within a physics step, rectified chatter read as stiffness
+@example(noise_n=0.2622544676785593, log_k=-4.8363431391686795, n=1.988769447230295, b=0.01, seed=75)
 def test_any_noise_and_tissue_palpated_through_the_simulator_gives_an_honest_reading(noise_n, log_k, n, b, seed):
     k = math.exp(log_k)
     scene = Scene(name="extreme", seed=seed, tissue={"stiffness_n_per_mm": k, "exponent": n, "damping_n_s_per_mm": b},
