@@ -348,3 +348,26 @@ def test_a_free_form_regions_sds_are_its_boundarys_carried_to_its_centroid_and_a
     assert lump.center_sd_mm == pytest.approx(centre_sd, rel=0.1)
     assert lump.radius_sd_mm == pytest.approx(radius_sd, rel=0.1)
     assert "boundary_sd_mm" in lump.as_dict()
+
+
+def test_the_count_says_how_large_a_lump_could_lie_unfelt_between_the_readings():
+    """A lump whose disc holds no reading is felt by none: the report's model gives the largest such radius, the
+    farthest spot's distance from every reading, and it shrinks where the next reading goes."""
+    from palpd.config import Settings
+    from palpd.learner.planner import make_learner
+
+    learner = make_learner(Settings().updated(learner={"grid_points": 61}), (60.0, 60.0), 0)
+    rng = np.random.default_rng(3)
+    spots = [tuple(xy) for xy in rng.uniform(-28.0, 28.0, (6, 2))]  # no two spots equally far from the readings
+    for xy in spots:
+        learner.observe(xy, 0.12 * (1.0 + rng.normal(0.0, 0.02)), 0.0024)
+    fine = np.stack(np.meshgrid(np.linspace(-30, 30, 241), np.linspace(-30, 30, 241)), axis=-1).reshape(-1, 2)
+    reported = []
+    for _ in range(3):
+        distance = np.hypot(*(fine[:, None, :] - np.asarray(spots)[None]).transpose(2, 0, 1)).min(axis=1)
+        truth = float(distance.max())
+        reported.append(learner.model()["unfelt_radius_mm"])
+        assert truth - math.sqrt(2.0) - 0.05 <= reported[-1] <= truth + 0.05  # on a 2 mm lattice of cells
+        spots.append(tuple(fine[int(np.argmax(distance))]))  # the next reading where a lump could hide most
+        learner.observe(spots[-1], 0.12, 0.0024)
+    assert reported[-1] < reported[0]

@@ -135,6 +135,9 @@ class ModelChoice(BaseModel):
     """Its posterior weight among the hypotheses compared."""
     runner_up: Optional[str] = None
     """The next most likely hypothesis (null when there was no other)."""
+    unfelt_radius_mm: Optional[float] = None
+    """The farthest any spot of the tissue lies from a reading: a lump of smaller radius could sit between the
+    readings unfelt, so the count means "no other lump this large or larger"."""
 
 
 class Estimate(Event):

@@ -106,7 +106,9 @@ def _verdict_line(report: dict) -> str:
                                    + (f", runner-up {model['runner_up']})" if model["runner_up"] else ")"))
     text = {"none": "no lump", "lumps": f"{len(report['lumps'])} lump(s)",
             "undetermined": "undetermined"}[report["verdict"]]
-    return f"verdict: {text}{chosen}"
+    unfelt = model.get("unfelt_radius_mm") if model and report["verdict"] != "undetermined" else None
+    reach = "" if unfelt is None else f"; a lump under {unfelt:.1f} mm in radius could lie unfelt between the readings"
+    return f"verdict: {text}{chosen}{reach}"
 
 
 def _lump_line(lump: dict) -> str:

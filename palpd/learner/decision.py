@@ -36,8 +36,16 @@ class Decision:
         return None if self.choice is None else self.hypotheses.checked(self.choice.chosen, self.obs)
 
     def model(self) -> dict | None:
-        """{chosen, weight, runner_up} of the scan report and the estimate event."""
-        return None if self.choice is None else self.choice.as_dict()
+        """{chosen, weight, runner_up, unfelt_radius_mm} of the scan report and the estimate event."""
+        if self.choice is None:
+            return None
+        return self.choice.as_dict() | {"unfelt_radius_mm": round(self.unfelt_radius_mm(), 1)}
+
+    def unfelt_radius_mm(self) -> float:
+        """What the count claim leaves open: a lump whose disc holds no reading is felt by none (a sharp edge is
+        felt only inside it), and the largest such disc has the radius of the farthest spot's distance from
+        every reading (on the coverage cells, model.COVERAGE_STEP_MM apart). "k lumps" means none other larger."""
+        return float(self.coverage.distance_mm.max())
 
     def lumps(self) -> list[LumpEstimate]:
         if "lumps" not in self._cache:
