@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from palpd.errors import PalpdError
+from palpd.errors import ConfigError, PalpdError
 
 HEADER = ("x_mm", "y_mm", "stiffness_n_per_mm", "tumor")
 
@@ -53,6 +53,17 @@ def read_dataset(path: str | Path) -> Dataset:
     values = np.array([r[:3] for r in rows], dtype=float).reshape(-1, 3)
     tumor = np.array([r[3] for r in rows], dtype=int) if "tumor" in columns else None
     return Dataset(str(path), values[:, :2], values[:, 2], tumor)
+
+
+def read_training_set(path: str | Path) -> Dataset:
+    """A dataset that can teach the supervised threshold (learner.training_set): labelled, both classes present;
+    otherwise one ConfigError naming the file. Light enough for a command to check before it imports a scan."""
+    data = read_dataset(path)
+    if data.tumor is None:
+        raise ConfigError(f"learner.training_set {path}: no tumor column, so nothing to learn a threshold from")
+    if not data.tumor.any() or data.tumor.all():
+        raise ConfigError(f"learner.training_set {path}: needs both tumor (1) and tissue (0) rows")
+    return data
 
 
 def _row(path: Path, line: int, row: dict, labelled: bool) -> tuple:

@@ -39,6 +39,10 @@ def run(args) -> int:
                              args.speed_mm_s, args.confidence, args.train, args.tolerance_mm,
                              args.palpation)
     scene = load_scene_named(args.scene)
+    if settings.learner.training_set:
+        from palpd.datafile import read_training_set
+
+        read_training_set(settings.learner.training_set)  # a file that cannot teach fails before the scan stack loads
     # Heavy imports (scipy.stats, scikit-learn, matplotlib) only once arguments, config and scene are known good.
     from palpd.files import check_writable, write_json
 

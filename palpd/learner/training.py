@@ -13,17 +13,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from palpd.datafile import read_dataset
+from palpd.datafile import read_training_set
 from palpd.errors import ConfigError
+
 
 def supervised_tau(path: str) -> float:
     """τ (N/mm) from the labelled training set at `path`; a file that cannot teach one is a ConfigError."""
-    data = read_dataset(path)
-    if data.tumor is None:
-        raise ConfigError(f"learner.training_set {path}: no tumor column, so nothing to learn a threshold from")
+    data = read_training_set(path)
     k, tumor = data.stiffness_n_per_mm, data.tumor.astype(bool)
-    if not tumor.any() or tumor.all():
-        raise ConfigError(f"learner.training_set {path}: needs both tumor (1) and tissue (0) rows")
     from sklearn.linear_model import LogisticRegression  # after the checks: a bad file fails at once
     from sklearn.pipeline import make_pipeline
     from sklearn.preprocessing import StandardScaler
