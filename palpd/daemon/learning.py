@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 
-from palpd.learner.planner import make_learner
 from palpd.posterior import MAP_CELLS_PER_SIDE, posterior_grid
 
 DEFAULT_MAX_PALPATIONS = 81  # raster and random, when scan.start does not say
@@ -30,6 +29,10 @@ class LearnerEstimator:
     def __init__(self, settings, center_mm, size_mm, max_palpations: int, seed: int = 0) -> None:
         self.cx, self.cy = float(center_mm[0]), float(center_mm[1])
         self.max_palpations = max_palpations
+        # Here, not at the top: the learner and its scipy take ~0.4 s to import, and a daemon that never
+        # estimates (a probe, a bias, a status) should not pay it on every start.
+        from palpd.learner.planner import make_learner
+
         self.learner = make_learner(settings, tuple(size_mm), seed)
         self.xy_mm: list[tuple[float, float]] = []  # the stiffness points, for estimate.get and plots
         self.k_n_per_mm: list[float] = []

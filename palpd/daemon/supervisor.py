@@ -44,7 +44,7 @@ class Supervisor:
         self.state, self.message = "configure", ""
         self.session, self.job, self.recording = None, None, None
         self.probe_session = None  # single palpations (probe.at) of this run, journaled like a scan's
-        self.estimator = make_estimator(settings, None, bench.tissue_size_mm)
+        self._estimator = None  # the whole tissue's, made when first asked for (learning.py)
         self.samples = SampleDrain()
         self.last_estimate = None
         self.last_map = None  # the learner's posterior grid (reply.estimate.get's map), made by the worker
@@ -53,6 +53,17 @@ class Supervisor:
         self._last_watchdog = 0.0
         self._last_status_s = 0.0
         self._now_s = 0.0
+
+    @property
+    def estimator(self):
+        """The current session's estimator; before any, the whole tissue's (made on first use)."""
+        if self._estimator is None:
+            self._estimator = make_estimator(self.settings, None, self.bench.tissue_size_mm)
+        return self._estimator
+
+    @estimator.setter
+    def estimator(self, estimator) -> None:
+        self._estimator = estimator
 
     # Start and stop -----------------------------------------------------------------------------
 
