@@ -183,3 +183,18 @@ def test_batch_linear_fits_match_one_by_one_and_mark_bad_rows():
     one_by_one = fit_batch([(depth[i], force[i]) for i in range(4)], model="linear-offset")
     assert [r.stiffness_n_per_mm for r in one_by_one[:3]] == pytest.approx(batch["stiffness_n_per_mm"][:3].tolist())
     assert isinstance(one_by_one[3], FitRejected) and one_by_one[3].reason == "constant_force"
+
+
+def test_a_curved_fit_at_the_edge_of_its_parameters_or_read_before_its_data_is_no_reading():
+    """A fit whose parameter sits on its bound has no optimum inside the box and no curvature to give an sd; one
+    whose onset puts the first sample past the reference indentation would read its tangent where it has no data.
+    Either is rejected by name, and selection goes on without it."""
+    rng = np.random.default_rng(0)
+    depth = np.linspace(0.0, 5.0, 400)
+    steeper_than_any_power = 0.002 * depth**5 + rng.normal(0.0, 0.002, depth.size)  # x^5: n runs to its bound, 3
+    with pytest.raises(FitRejected, match="edge of its parameters \\(n\\)"):
+        fit_stiffness(depth, steeper_than_any_power, model="power")
+    onset_before_contact = 0.05 * np.expm1(0.8 * (depth + 3.0)) + rng.normal(0.0, 0.002, depth.size)
+    with pytest.raises(FitRejected, match="first sample 3.0. mm in, past the 2 mm reference"):
+        fit_stiffness(depth, onset_before_contact, model="exponential")
+    assert fit_stiffness(depth, onset_before_contact).model != "exponential"

@@ -12,7 +12,6 @@ from palpd.stiffness.models import LINEAR_OFFSET, Model, initial_guess
 from palpd.stiffness.samples import FitRejected, Samples, check_rise, prepare
 
 BOUND_TOL = 1e-6  # a nonlinear model's parameter this close to its bound (scaled units) sits on it
-LONG_RUN_SIGNIFICANCE = 3.0  # sds of white noise's own spread the long-run sum must clear to count
 
 
 @dataclass(frozen=True)
@@ -103,9 +102,8 @@ def _solve_nonlinear(model: Model, d, f, rate) -> np.ndarray:
               if math.isclose(value, lo, abs_tol=BOUND_TOL * (1.0 + abs(lo)))
               or math.isclose(value, hi, abs_tol=BOUND_TOL * (1.0 + abs(hi)))]
     if pinned:
-        # the likelihood still rises past the box: no optimum inside, so no curvature to read an sd from (soft
-        # damped tissue whose press slowed: an exponential with its onset 5.2 mm before contact read 0.0008
-        # ± 0.0002 N/mm on 0.12, its tangent taken where it had no data)
+        # the likelihood still rises past the box: no optimum inside, so no curvature to read an sd from (a
+        # chattering press on soft damped tissue had the power law's exponent at its bound of 3)
         raise FitRejected(f"model {model.name} ran to the edge of its parameters ({', '.join(pinned)})", "not_converged")
     return best
 
@@ -117,33 +115,16 @@ def _covariance(model: Model, theta, d, rate, rss: float) -> np.ndarray:
 
 
 def _serial_inflation(residual: np.ndarray) -> float:
-    """How much wider the parameters' variance is when neighbouring residuals move together: the residuals'
-    long-run variance over their variance, never below 1. A sensor's white noise leaves it ≈ 1; a press that
+    """How much wider the parameters' variance is when neighbouring residuals move together (AR(1): (1 + ρ) /
+    (1 - ρ), ρ the lag-one autocorrelation, never below 1). A sensor's white noise leaves ρ ≈ 0; a press that
     chatters on a stiff spot, or a model that misses the trace's shape, does not, and the plain least-squares
-    sd then trusts 126 samples as if independent: 10.6 ± 0.30 N/mm read on a 12 N/mm lump (lag-one ρ = 0.71).
-
-    AR(1)'s (1 + ρ) / (1 − ρ) is right for chatter whose correlation dies geometrically. A misfit that runs
-    over a few hundred samples has a lag-one ρ of only 0.33 and correlation that lasts (a power law read on
-    soft, damped tissue whose press slowed 40 %: 0.56 ± 0.023 N/mm against 0.43; AR(1) 2.0); the Bartlett-
-    weighted sum of the autocorrelations over √n lags (Newey–West) sees it (5.6). The sum is the larger one
-    only where white noise would not make it so: it wanders by ± 2·sqrt(Σw²/n) on white noise, and letting
-    that wander into every reading's sd moved the learner's course on the readings that had none."""
+    sd then trusts 126 samples as if independent: 10.6 ± 0.30 N/mm read on a 12 N/mm lump (ρ = 0.71)."""
     if residual.size < 3:
         return 1.0
     denominator = float(residual @ residual)
-    if denominator <= 0:
-        return 1.0
-    lag_one = float(residual[1:] @ residual[:-1]) / denominator
-    lag_one = min(max(lag_one, 0.0), 0.95)
-    ar1 = (1.0 + lag_one) / (1.0 - lag_one)
-    lags = np.arange(1, int(math.sqrt(residual.size)) + 1)
-    weights = 1.0 - lags / (lags[-1] + 1.0)
-    rho = np.array([float(residual[lag:] @ residual[:-lag]) for lag in lags]) / denominator
-    bartlett = 1.0 + 2.0 * float(weights @ rho)
-    white_noise_sd = 2.0 * math.sqrt(float(weights @ weights) / residual.size)
-    if bartlett > max(ar1, 1.0 + LONG_RUN_SIGNIFICANCE * white_noise_sd):
-        return bartlett
-    return max(ar1, 1.0)
+    rho = float(residual[1:] @ residual[:-1]) / denominator if denominator > 0 else 0.0
+    rho = min(max(rho, 0.0), 0.95)
+    return (1.0 + rho) / (1.0 - rho)
 
 
 def _numeric_jacobian(func, theta: np.ndarray) -> np.ndarray:
