@@ -20,3 +20,12 @@ def test_help_lists_every_command():
     for command in ("scan", "serve", "learner", "simulate", "dataset", "study", "calibration", "schema",
                     "replay", "keygen", "bench"):
         assert f"    {command}" in result.stdout
+
+
+def test_building_the_parser_imports_neither_numpy_nor_the_config():
+    """Every command, failing ones included, builds the whole parser first: a subcommand's add_parser that
+    pulled in the control stack cost each `palpd` start ~0.1-0.2 s (bench loop's did, through numpy)."""
+    script = ("import sys\nfrom palpd.cli import build_parser\nbuild_parser()\n"
+              "print([m for m in ('numpy', 'pydantic', 'palpd.config') if m in sys.modules])")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0 and result.stdout.strip() == "[]", result.stdout + result.stderr

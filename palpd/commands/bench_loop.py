@@ -9,9 +9,6 @@ import json
 import sys
 import time
 
-from palpd.control.palpation import Palpation
-from palpd.control.tasks import MoveTo
-
 
 def add_parser(subparsers):
     loop = subparsers.add_parser("loop", help="servo loop timing vs a bare sleep-to-deadline loop")
@@ -102,6 +99,12 @@ class _PalpateUntil:
     speed fault)."""
 
     def __init__(self, end_s: float, palpation_settings) -> None:
+        # imported here, not at the top: `palpd --help` and every other command build this module's parser,
+        # and the control stack brings numpy (~0.1 s per command start)
+        from palpd.control.palpation import Palpation
+        from palpd.control.tasks import MoveTo
+
+        self._palpation, self._move_to = Palpation, MoveTo
         self.end_s, self.settings = end_s, palpation_settings
         self._task = None
         self._target = None
@@ -116,12 +119,12 @@ class _PalpateUntil:
             if target is None or target[2] >= p.clearance_mm:  # not down near the tissue: stop where it is
                 self.done = True
                 return target if target is not None else tick.tip_mm
-            self._task = MoveTo((target[0], target[1], p.clearance_mm), p.approach_speed_mm_s, p.accel_mm_s2,
+            self._task = self._move_to((target[0], target[1], p.clearance_mm), p.approach_speed_mm_s, p.accel_mm_s2,
                                 start=target)  # straight up, as a palpation's own retract
         if self._task is None or self._task.done:
             if self._leaving:
                 self.done = True
                 return self._target
-            self._task = Palpation((0.0, 0.0), p)
+            self._task = self._palpation((0.0, 0.0), p)
         self._target = self._task.step(tick)
         return self._target
