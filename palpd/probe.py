@@ -68,6 +68,12 @@ def judge(record: PalpationRecord, settings) -> Probe:
     """settings: palpd.config.Settings. The fit, or the outcome that says why there is none."""
     if not record.contact:
         return Probe(record, None, "no contact found within the approach", "no_contact")
+    if record.stop_reason == "no_contact" and record.onset_spread_mm > max(record.depth_mm, default=0.0):
+        # No threshold fired and the rise found in the approach could begin anywhere over more than the depth
+        # pressed after it: its slope is the noise's (0.005 N/mm tissue under 0.24 N of noise read 0.095 ±
+        # 0.030 from the last 1.8 mm of a 15 mm approach, the onset as plausible anywhere over 5 mm).
+        return _too_soft_in_approach(record, f"a rise too faint to place: its onset as likely anywhere over "
+                                             f"{record.onset_spread_mm:.1f} mm")
     try:
         varying = settings.palpation.speed_profile == "varying"
         fit = fit_palpation(record, settings.stiffness, settings.servo.rate_hz, varying)
@@ -84,12 +90,17 @@ def _too_stiff(record: PalpationRecord, why: str) -> Probe:
     return Probe(record, None, f"force limit before a stiffness ({why})", "too_stiff", bound)
 
 
+def _too_soft_in_approach(record: PalpationRecord, why: str) -> Probe:
+    """The threshold never fired all the way down: at most the threshold over the depth reached below the
+    nominal surface."""
+    bound = record.contact_on_n / max(-record.lowest_z_mm, DEPTH_RESOLUTION_MM)
+    return Probe(record, None, f"no force reached the contact threshold down to the margin ({why})", "too_soft", bound)
+
+
 def _unfitted(record: PalpationRecord, exc: FitRejected) -> Probe:
     deepest_mm = max(record.depth_mm, default=0.0)
     if record.stop_reason == "no_contact":  # the threshold never fired all the way down, and no rise fits
-        bound = record.contact_on_n / max(-record.lowest_z_mm, DEPTH_RESOLUTION_MM)
-        return Probe(record, None, f"no force reached the contact threshold down to the margin ({exc})",
-                     "too_soft", bound)
+        return _too_soft_in_approach(record, str(exc))
     if exc.reason in NO_FIT and record.stop_reason == "force":
         return _too_stiff(record, str(exc))
     if exc.reason in ("no_rise", "constant_force") and record.stop_reason == "depth" and deepest_mm > 0:

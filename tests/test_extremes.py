@@ -1,6 +1,7 @@
 """Palpation at the extremes of sensor and tissue, through the simulator: noise 0.001-0.3 N, tissue 0.005-5 N/mm
 and what is pressed up to 50 N/mm (a lump of 100 N/mm below, 20 times the stiffest tissue), exponent 1-2, damping 0-0.01 N·s/mm. Each palpation gives a stiffness within its stated uncertainty, or a named
 outcome (a bound the truth satisfies), always where it was aimed."""
+import dataclasses
 import math
 import os
 import random
@@ -83,6 +84,8 @@ def check_honest(probe, k, n, b):
 @example(noise_n=0.2622544676785593, log_k=-4.8363431391686795, n=1.988769447230295, b=0.01, seed=75)
 # and an exponential chosen by BIC 2.3 over the power law it could not exclude, which read the slope 4 times less surely
 @example(noise_n=0.0980665, log_k=-3.4279241847715376, n=1.708769841848929, b=0.0, seed=273)
+# and a rise in an approach no threshold caught, its onset picked by the noise 12 mm down: 0.095 ± 0.030 on 0.005
+@example(noise_n=0.2366, log_k=-5.298317366548035, n=1.0, b=0.0, seed=203)
 def test_any_noise_and_tissue_palpated_through_the_simulator_gives_an_honest_reading(noise_n, log_k, n, b, seed):
     k = math.exp(log_k)
     scene = Scene(name="extreme", seed=seed, tissue={"stiffness_n_per_mm": k, "exponent": n, "damping_n_s_per_mm": b},
@@ -189,9 +192,28 @@ def test_hinge_finds_the_onset_under_noise_a_threshold_fires_millimetres_late():
     rng = np.random.default_rng(0)
     z = np.linspace(3.0, -4.0, 1400)  # tip height, mm: the surface at 0
     force = 0.12 * np.maximum(-z, 0.0) + rng.normal(0.0, 0.3, z.size)
-    onset, zero = hinge(z, force, fallback=1100)
-    assert abs(z[onset]) < 0.4 and abs(zero) < 0.05
+    onset, zero, spread_mm = hinge(z, force, fallback=1100)
+    assert abs(z[onset]) < 0.4 and abs(zero) < 0.05 and spread_mm < 2.0  # placed within the 4 mm pressed
     assert hinge(z, rng.normal(0.0, 0.3, z.size), fallback=1100)[0] is None  # flat: no contact at all
+
+
+def test_a_faint_rise_the_trace_cannot_place_is_a_bound_not_a_reading():
+    """No threshold fired all the way down a 15 mm approach; the trace rises significantly, but onsets
+    many millimetres apart fit it as well as the best, so the slope after the one picked is the noise's."""
+    rng = np.random.default_rng(3)
+    z = np.linspace(1.5, -14.0, 1550)
+    force = 0.005 * np.maximum(-z, 0.0) + rng.normal(0.0, 0.24, z.size)
+    force[-180:] += np.linspace(0.0, 0.1, 180)  # and a faint rise over the last 1.8 mm
+    onset, zero, spread_mm = hinge(z, force, fallback=z.size - 1)
+    assert onset is not None and spread_mm > z[onset] - z[-1]
+    record = PalpationRecord((3.0, -2.0), contact=True, contact_z_mm=float(z[onset]), stop_reason="no_contact",
+                             depth_mm=list(z[onset] - z[onset:]), force_n=list(force[onset:] - zero),
+                             contact_on_n=0.3, lowest_z_mm=float(z[-1]), onset_spread_mm=spread_mm)
+    probe = judge(record, SETTINGS)
+    assert probe.outcome == "too_soft" and probe.fit is None and "too faint to place" in probe.rejected
+    assert probe.stiffness_bound_n_per_mm == pytest.approx(0.3 / 14.0)
+    placed = judge(dataclasses.replace(record, onset_spread_mm=0.1), SETTINGS)
+    assert placed.outcome == "fit"  # the same trace, placed: read as it is (the rule is the spread, not the trace)
 
 
 def test_noise_is_measured_about_the_drift_and_scales_the_thresholds_above_the_floors():

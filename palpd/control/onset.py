@@ -17,6 +17,9 @@ import numpy as np
 CANDIDATES = 256  # hinge positions tried in the coarse pass; the best one's neighbours are then all tried
 EXPONENTS = (1.0, 1.5, 2.0)
 MIN_RISE_T = 3.0  # the rise must stand this many standard errors clear of flat, or the detected point stands
+# Onsets whose hinge fits the trace within this many noise variances of the best are as plausible as the best
+# (about two standard errors for one parameter): their span is how well the trace places the onset.
+PLAUSIBLE_RSS_UNITS = 4.0
 
 
 def refine(segment, refit_onset: bool = True) -> bool:
@@ -35,11 +38,12 @@ def refine(segment, refit_onset: bool = True) -> bool:
     # The hinge is fitted over the approach and the first half of the press: a curved or damped tissue's
     # force bends (or follows the speed) deeper, which would drag a hinge's onset with it.
     halfway = detected + int(np.argmax(z[detected:peak + 1] <= (z[detected] + z[peak]) / 2.0))
-    onset, zero_n = hinge(z[:halfway + 1], f[:halfway + 1], detected) if refit_onset else (detected, 0.0)
+    onset, zero_n, spread_mm = hinge(z[:halfway + 1], f[:halfway + 1], detected) if refit_onset else (detected, 0.0, 0.0)
     if onset is None:
         return False
     d, pressed = z[onset] - z, f - zero_n
     segment.contact_z_mm = float(z[onset])
+    segment.onset_spread_mm = spread_mm
     segment.baseline_n += zero_n
     segment.depth_mm, segment.force_n = d[onset:peak + 1].tolist(), pressed[onset:peak + 1].tolist()
     segment.unload_depth_mm, segment.unload_force_n = d[peak + 1:].tolist(), pressed[peak + 1:].tolist()
@@ -48,27 +52,32 @@ def refine(segment, refit_onset: bool = True) -> bool:
     return True
 
 
-def hinge(z: np.ndarray, f: np.ndarray, fallback: int) -> tuple[int | None, float]:
-    """(index of the onset, the zero force before it): least squares of f = c + k·max(z[j] − z, 0)ⁿ over
-    every j, for n of 1, 1.5 and 2 (a curved tissue's rise bends a straight hinge's onset deeper).
-    With too few samples, the fallback; with no significant rise, None."""
+def hinge(z: np.ndarray, f: np.ndarray, fallback: int) -> tuple[int | None, float, float]:
+    """(index of the onset, the zero force before it, the span in mm of the onsets as plausible as it):
+    least squares of f = c + k·max(z[j] − z, 0)ⁿ over every j, for n of 1, 1.5 and 2 (a curved tissue's rise
+    bends a straight hinge's onset deeper). With too few samples, the fallback; with no significant rise, None."""
     n = z.size
     if n < 6:
-        return min(fallback, n - 1), 0.0
+        return min(fallback, n - 1), 0.0, 0.0
     fits = [_best_onset(z, f, power) for power in EXPONENTS]
-    rss, onset, rises, zero_n = min(fits)
-    return (onset, zero_n) if rises else (None, 0.0)
+    rss, onset, rises, zero_n, spread_mm = min(fits)
+    return (onset, zero_n, spread_mm) if rises else (None, 0.0, 0.0)
 
 
-def _best_onset(z, f, power: float) -> tuple[float, int, bool, float]:
+def _best_onset(z, f, power: float) -> tuple[float, int, bool, float, float]:
     n = z.size
     coarse = np.unique(np.linspace(0, n - 1, min(n, CANDIDATES)).astype(int))
-    best = coarse[np.argmin(_rss(z, f, coarse, power)[0])]
+    coarse_rss = _rss(z, f, coarse, power)[0]
+    best = coarse[np.argmin(coarse_rss)]
     step = max(1, n // CANDIDATES)
     fine = np.arange(max(best - step, 0), min(best + step, n - 1) + 1)
     rss, slope, se, intercept = _rss(z, f, fine, power)
     i = int(np.argmin(rss))
-    return float(rss[i]), int(fine[i]), bool(slope[i] > MIN_RISE_T * se[i]), float(intercept[i])
+    # A faint rise at the end of a long flat trace can sit anywhere along it: the noise, not the tissue,
+    # then decides where the hinge bends, and the slope after it is the noise's too.
+    plausible = z[coarse[coarse_rss <= rss[i] * (1.0 + PLAUSIBLE_RSS_UNITS / max(n - 3, 1))]]
+    spread_mm = float(plausible.max() - plausible.min()) if plausible.size else 0.0
+    return float(rss[i]), int(fine[i]), bool(slope[i] > MIN_RISE_T * se[i]), float(intercept[i]), spread_mm
 
 
 def _rss(z, f, candidates, power: float):

@@ -55,6 +55,7 @@ class PalpationRecord:
     noise_sd_n: float | None = None
     lowest_z_mm: float = math.inf  # the deepest the tip went (tissue frame: the nominal surface is z = 0)
     force_lead_s: float = 0.0  # how much newer the force samples were than the tip readings (aligned for the fit)
+    onset_spread_mm: float = 0.0  # the span of contact points the trace fits as well as the one found (onset.refine)
 
     def __post_init__(self) -> None:
         if self.xy_mm is None:
@@ -189,6 +190,7 @@ class Palpation:
         rec.depth_mm, rec.force_n = seg.depth_mm, seg.force_n
         rec.unload_depth_mm, rec.unload_force_n = seg.unload_depth_mm, seg.unload_force_n
         rec.force_lead_s = seg.force_lead_s
+        rec.onset_spread_mm = seg.onset_spread_mm
         rec.max_force_n = max(rec.max_force_n, seg.peak_force_n)
         return rec
 

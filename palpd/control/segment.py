@@ -45,6 +45,7 @@ class Segment:
     samples: list[tuple[float, float, float, float, float]] = field(default_factory=list)
     detected_at: int = 0  # index in samples where the threshold fired
     force_lead_s: float = 0.0  # how much newer each force sample is than the tip reading beside it
+    onset_spread_mm: float = 0.0  # how far apart the contact points the trace fits as well lie (onset.refine)
 
 
 class Segmenter:
