@@ -94,6 +94,11 @@ def _one_lump(xy: np.ndarray, is_lump: np.ndarray, group: np.ndarray, spacing: f
         radius, gap = float(inside.max() + spacing / 2), spacing
     else:
         radius = _svm_radius(distance, is_lump, spacing)
+        if not 0.0 < radius <= float(distance.max()):
+            # The stiff points are not the ones nearest their centre (lumps a coarse grid linked into one group,
+            # around a soft point): no distance separates them, and the SVM's boundary lies anywhere (a raster
+            # of 35 on 80 mm tissue with three lumps gave -17 462 mm). The disc that holds them all instead.
+            radius = float(inside.max() + spacing / 2)
         gap = max(float(outside.min() - inside.max()), 0.0) or spacing / 2
     centre_sd = max(float(group.std(axis=0).mean() / math.sqrt(len(group))), spacing / math.sqrt(12 * len(group)))
     return LumpEstimate(

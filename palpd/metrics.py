@@ -15,6 +15,7 @@ import numpy as np
 from matplotlib.path import Path as PolygonPath
 
 IOU_GRID_MM = 0.25
+MAX_GRID_POINTS = 1_000_000
 MAP_GRID_MM = 0.25
 TISSUE_PERCENTILE = 10
 
@@ -119,7 +120,10 @@ def region_iou(truth: list[dict], lumps: list[dict], size_mm) -> float:
 
 
 def _grid(low, high) -> np.ndarray:
-    gx, gy = np.meshgrid(np.arange(low[0], high[0], IOU_GRID_MM), np.arange(low[1], high[1], IOU_GRID_MM))
+    # Coarser than IOU_GRID_MM only for a region larger than 250 mm square (a boundary gone astray), which would
+    # otherwise need gigabytes
+    step = max(IOU_GRID_MM, math.sqrt(float(np.prod(np.asarray(high) - np.asarray(low))) / MAX_GRID_POINTS))
+    gx, gy = np.meshgrid(np.arange(low[0], high[0], step), np.arange(low[1], high[1], step))
     return np.column_stack([gx.ravel(), gy.ravel()])
 
 

@@ -57,3 +57,25 @@ def test_linear_fit_recovers_slope_and_rejects_what_it_cannot_fit():
     with pytest.raises(FitRejected, match="does not rise"):
         fit_linear(d, -0.3 * d)
     assert fit_linear([0, 1, np.nan, 2, 3], [0, 1, 5, 2, np.inf]).samples == 3
+
+
+def test_stiff_points_linked_around_a_soft_one_are_one_bounded_disc_not_an_svm_s_stray_boundary():
+    """A coarse raster (20 mm) over three lumps: four stiff points, linked into one group around soft points
+    nearer its centre. No distance separates them from the rest; the SVM's boundary had put the radius at -17 km."""
+    axis = np.arange(-40.0, 41.0, 20.0)
+    xy = np.array([(x, y) for x in axis for y in axis])
+    stiff = {(20.0, -20.0), (20.0, 0.0), (0.0, 20.0), (-20.0, 20.0)}  # 5 x 5 over 80 mm tissue, random-2-3
+    k = np.array([0.9 if (x, y) in stiff else 0.2 for x, y in xy])
+    (lump,) = estimate_lumps(xy, k)
+    distances = np.hypot(*(xy[k > 0.5] - lump.center_mm).T)
+    assert distances.max() < lump.radius_mm <= np.hypot(*(xy - lump.center_mm).T).max()  # holds them, bounded
+    assert np.all(np.isfinite(lump.boundary_mm))
+
+
+def test_iou_of_a_boundary_gone_astray_is_zero_without_gigabytes():
+    from palpd.estimate import circle_polygon
+    from palpd.metrics import iou
+
+    astray = circle_polygon((5.0, 5.0), 17462.0)
+    assert iou(astray, {"center_mm": [0.0, 0.0], "radius_mm": 5.0}) < 1e-3
+    assert iou(circle_polygon((0.0, 0.0), 5.0), {"center_mm": [0.0, 0.0], "radius_mm": 5.0}) > 0.97
