@@ -20,7 +20,7 @@ from palpd.stiffness.samples import FitRejected, check_rise, prepare
 
 CRITERIA = ("aicc", "bic")
 CLEARLY_BETTER = 2.0  # Burnham & Anderson: a difference below 2 is no real support
-NOT_EXCLUDED = 6.0  # Kass & Raftery: below 6 the evidence against a model is not strong; its reading counts
+NOT_EXCLUDED = 10.0  # Kass & Raftery: below 10 the evidence against a model is not very strong; its reading counts
 SELECT = "select"
 CURVATURE_P = 1e-3  # a curved model is tried only when a straight line is this unlikely to leave such curvature
 
