@@ -12,7 +12,8 @@ from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.scan import palpate
 from palpd.stiffness import REASONS, FitRejected, fit_stiffness
 from palpd.stiffness.batch import fit_batch, linear_batch
-from palpd.stiffness.palpation import depth_rate_mm_s
+from palpd.control.palpation import PalpationRecord
+from palpd.stiffness.palpation import before_the_stop, depth_rate_mm_s, fit_palpation
 
 DEPTH = np.linspace(0.0, 4.0, 400)
 
@@ -198,3 +199,34 @@ def test_a_curved_fit_at_the_edge_of_its_parameters_or_read_before_its_data_is_n
     with pytest.raises(FitRejected, match="first sample 3.0. mm in, past the 2 mm reference"):
         fit_stiffness(depth, onset_before_contact, model="exponential")
     assert fit_stiffness(depth, onset_before_contact).model != "exponential"
+
+
+@settings(max_examples=40, deadline=None)
+@given(steps=st.lists(st.floats(-0.05, 0.05), min_size=1, max_size=400), rate_hz=st.sampled_from([500.0, 1000.0, 2000.0]))
+def test_the_depth_rate_is_scipy_s_savitzky_golay_derivative(steps, rate_hz):
+    from scipy.signal import savgol_filter
+
+    depth = np.cumsum(steps)
+    window = min(int(0.015 * rate_hz) | 1, depth.size if depth.size % 2 else depth.size - 1)
+    expected = savgol_filter(depth, window, 2, deriv=1, delta=1.0 / rate_hz) if window >= 5 else np.zeros_like(depth)
+    assert depth_rate_mm_s(depth, rate_hz) == pytest.approx(expected, abs=1e-6)
+
+
+def test_the_stop_s_braking_is_left_out_of_a_constant_speed_fit_only_when_it_took_force_away():
+    t = np.arange(600) / 1000.0
+    speed = np.where(t < 0.56, 10.0, 10.0 * np.exp(-(t - 0.559) / 0.012))  # 10 mm/s, then braking to rest
+    depth = np.concatenate([[0.0], np.cumsum(speed[1:]) / 1000.0])
+    noise = np.random.default_rng(0).normal(0.0, 0.01, depth.size)
+    k, b = 0.03, 0.01
+    damped = (k + b * speed) * depth**1.9 + noise  # k·x^1.9 + b·x^1.9·v: the braking takes b·v away
+    elastic = (k + b * 10.0) * depth**1.9 + noise  # the same press on tissue whose force follows its depth
+    kept = before_the_stop(depth, damped, 1000.0)
+    assert 555 <= kept <= 562 and np.all(depth_rate_mm_s(depth, 1000.0)[kept:] < 9.0)
+    assert before_the_stop(depth, elastic, 1000.0) == depth.size  # braking that lost nothing: all kept
+    pressing = depth[:560]
+    assert before_the_stop(pressing, damped[:560], 1000.0) == pressing.size  # no braking: every sample kept
+    truth = (k + b * 10.0) * 1.9 * Settings().stiffness.reference_depth_mm ** 0.9
+    for force in (damped, elastic):
+        record = PalpationRecord((0.0, 0.0), contact=True, depth_mm=list(depth), force_n=list(force))
+        fit = fit_palpation(record, Settings().stiffness, 1000.0)
+        assert abs(fit.stiffness_n_per_mm - truth) <= 3.0 * fit.stiffness_se_n_per_mm + 0.01 * truth
