@@ -3,6 +3,7 @@ import math
 import subprocess
 import sys
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -82,15 +83,25 @@ def log_evidence(hyper: Hyper, xy, y, noise_var) -> float:
     return gp.log_marginal_likelihood()
 
 
+SAME_NATS = 1e-3  # log evidence two optimisers' stopping points may differ by and still be one optimum
+
+
 @hsettings(max_examples=20, deadline=None)
 @given(n=st.integers(3, 50), contrast=st.floats(0.0, 3.0), noise_sd=st.floats(1e-4, 0.5), seed=st.integers(0, 999),
        start_var=st.floats(1e-3, 10.0), start_length_mm=st.floats(1.0, 40.0))
 @example(n=12, contrast=0.386, noise_sd=0.00247, seed=697, start_var=0.5, start_length_mm=8.0)
+@example(n=11, contrast=1.75, noise_sd=0.4375, seed=745, start_var=3.75, start_length_mm=7.09375)  # a σ² ridge
+@example(n=33, contrast=0.0, noise_sd=0.0719742988241281, seed=589, start_var=7.082271299899137,
+         start_length_mm=17.30322832335969)  # L-BFGS-B stopped 0.05 nat short (fit_hyper now restarts)
 def test_the_kernel_relearn_finds_scikit_learns_optimum(n, contrast, noise_sd, seed, start_var, start_length_mm):
     """fit_hyper is scikit-learn's fit written over the learner's own kernel (so no learner imports
     scikit-learn): from flat tissue to a 20x lump, from clean readings to very noisy ones, from starts
-    inside and outside the bounds, the same optimum. Where the evidence is flat in the field's variance
-    (no field at all: σ² anywhere below 1e-5) the two may stop at different σ²; the evidence is the same."""
+    inside and outside the bounds, the same optimum.
+
+    Both optimisers stop on their own tolerances, so "the same" is a thousandth of a nat of evidence, and a
+    parameter may differ only where the evidence cannot tell the two values apart (a ridge: no field at all,
+    or white noise far below the readings' own), or where scikit-learn stopped short of this optimum. A
+    1e-6-nat, parameter-for-parameter version failed about one hypothesis run in twenty on such ridges."""
     rng = np.random.default_rng(seed)
     xy = rng.uniform(-30.0, 30.0, (n, 2))
     y = np.log(0.12) + contrast * (np.hypot(*(xy - 4.0).T) < 9.0) + rng.normal(0.0, noise_sd, n)
@@ -98,11 +109,14 @@ def test_the_kernel_relearn_finds_scikit_learns_optimum(n, contrast, noise_sd, s
     start = Hyper(float(np.median(y)), start_var, start_length_mm, 1e-3)
     mine = fit_hyper(xy, y, noise_var, start, (1.5, 30.0), 1e-4)
     theirs = sklearn_fit_hyper(xy, y, noise_var, start, (1.5, 30.0), 1e-4)
-    assert log_evidence(mine, xy, y, noise_var) >= log_evidence(theirs, xy, y, noise_var) - 1e-6
-    assert mine.white_var == pytest.approx(theirs.white_var, rel=1e-2)
-    if max(mine.signal_var, theirs.signal_var) > 1e-5:
-        assert mine.signal_var == pytest.approx(theirs.signal_var, rel=1e-2)
-        assert mine.length_mm == pytest.approx(theirs.length_mm, rel=1e-2)
+    mine_lml, theirs_lml = log_evidence(mine, xy, y, noise_var), log_evidence(theirs, xy, y, noise_var)
+    assert mine_lml >= theirs_lml - SAME_NATS
+    if mine_lml > theirs_lml + SAME_NATS:
+        return  # scikit-learn stopped short: its parameters are not the optimum
+    for name in ("signal_var", "length_mm", "white_var"):
+        if getattr(mine, name) != pytest.approx(getattr(theirs, name), rel=1e-2):
+            swapped = log_evidence(replace(mine, **{name: getattr(theirs, name)}), xy, y, noise_var)
+            assert abs(swapped - mine_lml) <= 10 * SAME_NATS, (name, mine, theirs, mine_lml, swapped)
 
 
 def test_the_evidence_picks_one_lump_not_two_two_not_one_and_none_on_flat_tissue():
