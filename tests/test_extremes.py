@@ -72,7 +72,8 @@ def check_honest(probe, k, n, b):
 
 
 # Each example is a simulated palpation (~0.5 s): a few, unshrunk (a failure prints its example as drawn).
-# PALPD_EXTREMES_EXAMPLES=400 draws more, to look for failures on purpose (README, "Palpation at the extremes").
+# PALPD_HYPOTHESIS=explore PALPD_EXTREMES_EXAMPLES=400 draws more, afresh, to look for failures on purpose
+# (README, "Palpation at the extremes"); the suite draws the same 8 every run (tests/conftest.py).
 @hsettings(max_examples=int(os.environ.get("PALPD_EXTREMES_EXAMPLES", "8")), deadline=None, suppress_health_check=[HealthCheck.too_slow],
            phases=[Phase.explicit, Phase.reuse, Phase.generate])
 @given(noise_n=st.floats(0.001, 0.3), log_k=st.floats(math.log(0.005), math.log(50.0)), n=st.floats(1.0, 2.0),
