@@ -6,7 +6,6 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from palpd.stiffness.models import LINEAR_OFFSET, Model, initial_guess
 from palpd.stiffness.samples import FitRejected, Samples, check_rise, prepare
@@ -86,6 +85,10 @@ def _solve_linear(model: Model, d, f, rate) -> np.ndarray:
 
 
 def _solve_nonlinear(model: Model, d, f, rate) -> np.ndarray:
+    # Here, not at the top: scipy.optimize costs ~0.5 s of CPU to import, and a daemon imports this module
+    # at start-up (for its scans) whether or not it ever palpates.
+    from scipy.optimize import least_squares
+
     lower, upper = (np.array(b, dtype=float) for b in model.bounds)
     best, best_cost = None, math.inf
     for start in model.starts:

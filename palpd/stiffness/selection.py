@@ -12,7 +12,6 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.special import fdtrc
 
 from palpd.stiffness.fit import ModelFit, fit_model
 from palpd.stiffness.models import MODELS, candidates
@@ -141,5 +140,7 @@ def _curvature_p(rss_line: float, rss_parabola: float, n: int) -> float:
     for a dozen samples, where noise alone bends a trace often enough to pass BIC by the margin."""
     if rss_parabola <= 0.0:
         return 0.0 if rss_line > 0.0 else 1.0
+    from scipy.special import fdtrc  # here: scipy.special costs ~0.2 s to import, a daemon that never fits
+
     f_stat = (rss_line - rss_parabola) / (rss_parabola / (n - 3))
     return float(fdtrc(1, n - 3, max(f_stat, 0.0)))
