@@ -14,6 +14,7 @@ from palpd.probe import MIN_SLOPE_DEPTH_MM, Probe, judge
 from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.errors import ScanFault, UsageError
 from palpd.estimate import estimate_lumps
+from palpd.stiffness import load_solvers
 
 # A press stopped by the force limit whose stiffness is less certain than this (relative sd) is repeated gently
 # (palpation.too_stiff = "repalpate"): a 30 N/mm lump in 5 N/mm tissue read 25.1 ± 6.9, then 30.2 ± 4.3
@@ -157,6 +158,7 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     probes: list[Probe] = []
     faults = []
     tared = None
+    load_solvers()  # before the motors are on (see there)
     try:
         servo.start()  # homes the arm first, supervised: after a category-0 stop it may lie anywhere
         xy = planner.next_probe()

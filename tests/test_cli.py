@@ -39,3 +39,20 @@ def test_a_daemon_starts_without_scipy_s_optimiser_or_special_functions():
               "print([m for m in ('scipy.optimize', 'scipy.special', 'sklearn') if m in sys.modules])")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
     assert result.returncode == 0 and result.stdout.strip() == "[]", result.stdout + result.stderr
+
+
+def test_a_scan_imports_the_fits_scipy_before_its_motors_are_on():
+    """...and a scan loads them before servo.start(): on the wall clock the first fit happens while the loop
+    holds the arm, and half a second of imports beside it is CPU the loop does not need to share."""
+    script = ("import sys\nfrom drivers.sim.scene import Scene\nfrom palpd.bench import open_simulated_bench\n"
+              "from palpd.config import Settings\nfrom palpd.scan import plan, run_scan\n"
+              "settings = Settings()\nbench = open_simulated_bench(settings, Scene(name='flat'))\n"
+              "start = bench.servo.start\n"
+              "def started():\n    print('scipy.optimize' in sys.modules, 'scipy.special' in sys.modules)\n"
+              "    start()\n"
+              "bench.servo.start = started\n"
+              "print('scipy.optimize' in sys.modules)\n"
+              "run_scan(bench, settings, plan('raster', (20, 20), 1, 0))")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split("\n")[:2] == ["False", "True True"], result.stdout

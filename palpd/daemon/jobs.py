@@ -6,6 +6,7 @@ from palpd.control.tasks import MoveTo
 from palpd.daemon.learning import DEFAULT_MAX_PALPATIONS, LearnerPlan
 from palpd.errors import PalpdError, ScanFault
 from palpd.scan import PARK_HEIGHT_MM, FixedPlan, palpate, plan
+from palpd.stiffness import load_solvers
 
 
 OLDER_SESSIONS = {"palpation": "discrete"}  # what a session written before a key existed meant
@@ -160,6 +161,7 @@ class ProbeJob:
 
     def __call__(self, worker) -> None:
         p, servo = self.settings.palpation, worker.bench.servo
+        load_solvers()  # before the motors are on (see there)
         servo.start()
         try:
             probe = palpate(worker.bench, self.settings, self.xy_mm)

@@ -74,6 +74,15 @@ def _check_reference_in_data(model: Model, params: np.ndarray, samples: Samples,
                           f"{reference_depth_mm:g} mm reference indentation", "not_converged")
 
 
+def load_solvers() -> None:
+    """Import the fits' scipy now. They import it at the first fit, so that a daemon that never palpates is
+    ready in half the CPU; a scan or probe calls this before it turns the motors on, because on the wall clock
+    the first fit happens while the servo loop holds the arm, and ~0.5 s of imports beside that 1 kHz loop on
+    a busy host is CPU it does not need to share."""
+    import scipy.optimize  # noqa: F401
+    import scipy.special  # noqa: F401
+
+
 def _named(model: Model, values) -> dict[str, float]:
     return {name: float(v) for name, v in zip(model.params, values)}
 
