@@ -27,7 +27,9 @@ def daemon_on(bench, tmp_path) -> Daemon:
 def palpctl(daemon, run_cli, *args):
     result = run_cli("--endpoint", daemon.commands, "--events", daemon.events, "--timeout", "10", *args,
                      module="palpd.palpctl")
-    assert result.returncode == 0, result.stderr
+    if result.returncode != 0:  # palpctl names a fault by its code; the daemon's log says what it measured
+        daemon.process.kill()
+        pytest.fail(f"{result.stderr}daemon log:\n{daemon.process.stderr.read()[-4000:]}")
     return json.loads(result.stdout) if result.stdout.startswith("{") else result.stdout
 
 
