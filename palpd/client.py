@@ -20,12 +20,13 @@ from typing import Callable, Iterator
 import zmq
 from pydantic import ValidationError
 
-from palpd.bus.messages import EVENT_MODELS, Event
+from palpd.bus.messages import EVENT_MODELS, Event, FaultMsg
 from palpd.bus.replies import REPLY_MODELS, EstimateGetReply, Reply, ScanStartReply, StatusReply
 from palpd.errors import PalpdError
 
 DEFAULT_TIMEOUT_S = 3.0
 SCAN_ENDED = ("ready", "fault", "stopped")
+FAULT_EVENT_WAIT_S = 0.5  # scan(wait=True): how long a fault event may trail the status that ended the scan
 
 
 class CommandRefused(PalpdError):
@@ -73,6 +74,7 @@ class Client:
         self._curve = curve_keys(server_key, key) if key is not None else {}
         self._context = zmq.Context()
         self._dealer = None
+        self.last_fault: FaultMsg | None = None  # the fault event heard while scan(wait=True) waited, if any
 
     # Lifetime ---------------------------------------------------------------------------------------
 
@@ -134,27 +136,42 @@ class Client:
              **options) -> ScanStartReply | StatusReply:
         """scan.start (options: max_palpations, seed, center_mm, size_mm, depth_mm, speed_mm_s, palpation, resume).
 
-        wait=True: return the status once the scan has ended (ready, or fault: check `.state`).
+        wait=True: return the status once the scan has ended (ready, or fault: check `.state`; the fault's
+        own event, which says what happened, is then `last_fault`).
         """
         args = {"strategy": strategy, **{k: v for k, v in options.items() if v is not None}}
         if not wait:
             return self.call("scan.start", **args)
-        with self._subscription("status") as statuses:
+        self.last_fault = None
+        with self._subscription("status", "fault") as events:
             self.call("scan.start", **args)
-            return self._until_scan_ends(statuses, wait_timeout_s)
+            return self._until_scan_ends(events, wait_timeout_s)
 
-    def _until_scan_ends(self, statuses: zmq.Socket, timeout_s: float | None) -> StatusReply:
-        """Status events (a heartbeat comes every status_interval_s) until the state leaves scanning."""
+    def _until_scan_ends(self, events: zmq.Socket, timeout_s: float | None) -> StatusReply:
+        """Status events (a heartbeat comes every status_interval_s) until the state leaves scanning; a fault
+        event on the way is kept (the status names a fault only by its code)."""
         give_up = None if timeout_s is None else time.monotonic() + timeout_s
         current = self.status()
         while current.state not in SCAN_ENDED:
             left_s = None if give_up is None else give_up - time.monotonic()
             if left_s is not None and left_s <= 0:
                 raise TimeoutError(f"the scan did not end within {timeout_s:g} s")
-            if statuses.poll(int(1000 * min(1.0, left_s if left_s is not None else 1.0))):
-                statuses.recv_multipart()  # any status event may be the end
+            if events.poll(int(1000 * min(1.0, left_s if left_s is not None else 1.0))):
+                self._keep_fault(events)  # any event may be the end
             current = self.status()  # asked every second even when no event came (events on another endpoint)
+        give_up = time.monotonic() + FAULT_EVENT_WAIT_S  # the fault event may trail the status that ended it
+        while current.state == "fault" and self.last_fault is None and events.poll(
+                max(0, int(1000 * (give_up - time.monotonic())))):
+            self._keep_fault(events)
         return current
+
+    def _keep_fault(self, events: zmq.Socket) -> None:
+        topic, payload = events.recv_multipart()[:2]
+        if topic == b"fault":
+            try:
+                self.last_fault = FaultMsg.model_validate_json(payload)
+            except ValidationError:
+                pass  # a newer daemon's fault this client cannot read: the status's code still says which
 
     def stop_scan(self) -> Reply:
         return self.call("scan.stop")

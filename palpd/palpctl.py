@@ -71,7 +71,9 @@ def run(client, args) -> int:
     if args.command == "scan" and args.action == "start":
         reply = client.scan(args.strategy or "raster", wait=args.wait, **scan_options(args))
         if args.wait and reply.state == "fault":
-            print(f"palpctl: the scan ended in a fault ({reply.message})", file=sys.stderr)
+            fault = client.last_fault
+            said = f"{fault.code}: {fault.message}" if fault is not None else reply.message
+            print(f"palpctl: the scan ended in a fault ({said})", file=sys.stderr)
             return 1
     elif args.command == "probe":
         reply = client.probe(args.x_mm, args.y_mm)

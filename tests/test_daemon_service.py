@@ -132,8 +132,21 @@ def test_palpctl_watch_probe_bias_estop_reset_and_a_probe_survives_kill_9(daemon
         assert "(   5.0,   -5.0) mm" in probe_line, probe_line  # the probes session counts from 1
         daemon.wait_for(lambda s: s["state"] == "ready", what="probe end")
 
-        palpctl("estop")
-        assert lines.wait_for("fault:") == "fault: estop emergency stop requested"
+        # an e-stop mid-scan: `scan start --wait` ends saying what the fault was, not only its code
+        waiting = subprocess.Popen([sys.executable, "-m", "palpd.palpctl", *endpoints, "scan", "start", "--wait",
+                                    "--max-palpations", "4"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                   text=True, env=daemon.env)
+        try:
+            lines.wait_for("status: scanning")
+            palpctl("estop")
+            fault_line = lines.wait_for("fault:")  # "fault: CODE MESSAGE", as watch prints it
+            _, stderr = waiting.communicate(timeout=30)
+        finally:
+            waiting.kill()
+        code, message = fault_line.removeprefix("fault: ").split(" ", 1)
+        assert code == "estop" and message, fault_line
+        assert waiting.returncode == 1
+        assert stderr == f"palpctl: the scan ended in a fault (estop: {message})\n", stderr
         assert daemon.call("status")["state"] == "fault"
         palpctl("reset")  # the arm is brought home, supervised, then the daemon is ready again
         daemon.wait_for(lambda s: s["state"] == "ready", what="ready after reset")
