@@ -127,6 +127,19 @@ def test_no_evidence_is_never_none_but_undetermined_when_the_budget_runs_out():
     assert learner.next_probe(12) is None and learner.verdict() == "undetermined" and learner.lumps() == []
 
 
+def test_a_choice_the_newest_reading_just_made_is_not_yet_a_verdict():
+    """A confident, adequate choice one reading old says `undetermined`; the next reading that keeps it
+    makes it the verdict (a scan whose budget ends on such a reading reports it undetermined)."""
+    learner = learn(field([]), budget=200, confidence=0.6)
+    assert learner.verdict() == "none"
+    learner.observe((5.0, 5.0), 0.8, 0.0004)  # a lump where flat tissue was expected
+    assert learner.model()["chosen"] == "circles:1" and learner._confident() and learner._adequate()
+    assert learner.verdict() == "undetermined"
+    for xy, k in [((7.0, 5.0), 0.8), ((3.0, 5.0), 0.75)]:
+        learner.observe(xy, k, 0.0004)
+    assert learner.model()["chosen"] == "circles:1" and learner.verdict() == "lumps"
+
+
 def test_very_noisy_readings_invent_nothing():
     learner = learn(field([]), noise=0.05, budget=30, grid=21)
     assert learner.lumps() == [] and learner.verdict() in ("none", "undetermined")

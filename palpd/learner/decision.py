@@ -5,7 +5,8 @@ Stop rule, in the user's terms: the chosen hypothesis's weight is at least
 at most `tolerance_mm` (`none` has nothing to pin down). Never on no evidence:
 with fewer usable readings than the simplest lump model has parameters the
 learner keeps palpating, and a budget spent before the rule holds is the
-verdict `undetermined`, never "no lump".
+verdict `undetermined`, never "no lump". A choice is not made on the reading
+that made it: it must have been the choice one reading before too.
 """
 from __future__ import annotations
 
@@ -180,9 +181,12 @@ class Decision:
         return "none" if self.choice.chosen == "none" else "lumps"
 
     def _choice_made(self) -> bool:
-        """Enough readings, a confident choice, and the chosen hypothesis explains them to their precision
-        (a model that needs far more noise than readings have is the best of a bad lot, not an answer)."""
-        return self._confident() and self._adequate()
+        """Enough readings, a confident choice that the newest reading did not just make, and the chosen
+        hypothesis explains them to their precision (a model that needs far more noise than readings have is
+        the best of a bad lot, not an answer). A choice one reading old is not made: four-lumps ended its
+        budget on `circles:5` at weight 1.000 one reading after `circles:4` at 1.000, one lump false; weights
+        that swing that far on one reading are the fits' own uncertainty, not the evidence's."""
+        return self._confident() and self._adequate() and self.choice.chosen == self._chosen_before
 
     def _confident(self) -> bool:
         """Enough readings at distinct spots, and one hypothesis weighs at least `confidence`."""
