@@ -198,12 +198,6 @@ class Decision:
         return self.coverage.spots >= MIN_READINGS
 
     def _adequate(self) -> bool:
-        """A parametric fit explains the readings to their precision. The free-form map is the model of last
-        resort: nothing more flexible could explain what it leaves, which is the map's own texture below its
-        length scale (a measured map's GP needs 2-4x the readings' noise), and its sds carry that noise; held
-        to the same bar, the half-stiff map (seed 2) ended its budget `undetermined` with IoU 0.99."""
-        if self.choice.chosen == "free-form":
-            return True
         return self._chosen_noise_sd() <= ADEQUATE_NOISE * self.noise_floor
 
     def _chosen_noise_sd(self) -> float:
