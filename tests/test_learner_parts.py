@@ -385,3 +385,30 @@ def test_the_count_says_how_large_a_lump_could_lie_unfelt_between_the_readings()
         spots.append(tuple(fine[int(np.argmax(distance))]))  # the next reading where a lump could hide most
         learner.observe(spots[-1], 0.12, 0.0024)
     assert reported[-1] < reported[0]
+
+
+def test_a_rival_s_lump_where_nothing_was_read_is_read_once_before_the_choice_stands():
+    """Twenty-six readings recorded from a simulated active scan of two-lumps (seed 7): the deep lump at
+    (14, -13), 6 mm, felt only on its flank at (7.5, -8), was explained with the other by one long ellipse,
+    chosen at 0.97 over the right two circles, whose second centre no reading had come within 8 mm of; the
+    scan stopped there, one lump reported. A rival's lump that holds no palpation is read once first."""
+    from palpd.config import Settings
+    from palpd.learner.planner import make_learner
+
+    recorded = [((-7.5, 8.0), 0.69743, 0.000392), ((7.5, 24.0), 0.12000, 0.000394), ((22.5, 8.0), 0.12035, 0.000354),
+                ((7.5, -8.0), 0.18915, 0.000411), ((22.5, -24.0), 0.12671, 0.000369), ((-7.5, -24.0), 0.12058, 0.000363),
+                ((-22.5, -8.0), 0.12001, 0.000356), ((-22.5, 24.0), 0.12011, 0.000350), ((-11.0, 14.0), 0.69949, 0.000406),
+                ((-16.0, 18.0), 0.25440, 0.000403), ((8.0, 16.0), 0.11943, 0.000384), ((-20.0, -1.0), 0.12291, 0.000365),
+                ((-22.5, -24.0), 0.12001, 0.000361), ((22.5, 24.0), 0.11985, 0.000370), ((2.0, 18.0), 0.12034, 0.000363),
+                ((1.0, 15.0), 0.12153, 0.000362), ((-5.0, -15.0), 0.12221, 0.000388), ((-5.0, -12.0), 0.12176, 0.000360),
+                ((-5.0, -10.0), 0.12134, 0.000370), ((9.0, 7.0), 0.12146, 0.000354), ((6.0, 7.0), 0.12062, 0.000388),
+                ((4.0, 6.0), 0.12044, 0.000367), ((-29.0, 15.0), 0.12029, 0.000374), ((-25.0, 18.0), 0.11987, 0.000361),
+                ((-26.0, 9.0), 0.12175, 0.000356), ((-25.0, 7.0), 0.12234, 0.000365)]
+    learner = make_learner(Settings(), (60.0, 60.0), 7)
+    for xy, k, sd in recorded:
+        learner.observe(xy, k, sd)
+    assert learner.choice.chosen == "ellipse:1" and learner.choice.weight >= learner.settings.confidence
+    assert learner.choice.weights["circles:2"] >= 0.01
+    assert not learner.decided()
+    probe = learner.next_probe(40)
+    assert math.dist(probe, (14.0, -13.0)) < 6.0, probe  # inside the lump the ellipse left out
