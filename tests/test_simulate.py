@@ -61,14 +61,15 @@ def test_a_killed_servo_process_leaves_the_arm_in_the_bridges_gravity_hold_and_t
         later = observer.read()
     finally:
         observer.transport.close()  # (not close(): that would disable the amplifiers, as a host does)
-    assert later.status & STATUS_AMPLIFIERS_ON and later.status & STATUS_HOLDING
+    assert later.status & STATUS_AMPLIFIERS_ON and later.status & STATUS_HOLDING, hex(later.status)
     heights_mm = [1000.0 * bench.frame.from_robot(model.forward(s.angles_rad))[2] for s in (first, later)]
     assert heights_mm[0] > 10.0 and heights_mm[1] > heights_mm[0] - 2.0, heights_mm  # floating, not falling
     again = open_servo_bench(settings, load_scene(SCENES / "paper.toml"))  # the same simulator, still running
     try:
         again.servo.start()  # what a scan does first: takes the arm over and brings it home, supervised
         again.servo.stop()  # parked in its stand, powered off
-        assert again.servo.fault is None and again.servo.last_tick.tip_mm[2] > 50.0
+        assert again.servo.fault is None and again.servo.last_tick.tip_mm[2] > 50.0, (again.servo.fault,
+                                                                                     again.servo.last_tick.tip_mm)
     finally:
         again.servo.close()
 
