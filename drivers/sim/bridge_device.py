@@ -3,7 +3,8 @@
 BridgeDevice turns host frames into STATE replies against a SimWorld, exactly
 as the bridge board's firmware would, watchdog included (PROTOCOL.md): when
 host frames stop for hold_after_s it ramps the currents over hold_ramp_s to
-the hold the host last sent (gravity compensation), and after watchdog_s of
+the hold the host last sent (gravity compensation), braked once the host has
+been silent HOLD_DAMP_AFTER_S, and after watchdog_s of
 silence it cuts the amplifiers and latches the trip. The physics runs through
 those instants as they fall due, not when the next frame happens to arrive.
 SimBridgeTransport puts it behind ``sim://`` in the same process; the servers
@@ -15,13 +16,18 @@ import time
 
 from drivers.errors import DriverInitializationError, DriverOperationError
 from drivers.interfaces import STATUS_HOLDING, STATUS_WATCHDOG_TRIPPED
-from drivers.phantom import codec
+from drivers.phantom import codec, model
 from drivers.sim.world import NO_FORCE, PHYSICS_STEP_S
 from drivers.transport import Transport
 
 DEFAULT_WATCHDOG_S = 10.0
 DEFAULT_HOLD_AFTER_S = 0.0015
 DEFAULT_HOLD_RAMP_S = 0.001
+# A host silent this long is not late but gone (the host rides out isolated stalls of a few ms on the hold
+# alone, as its gains are designed for): the hold then brakes each joint, so that what the last command set
+# moving comes to rest instead of coasting on a frictionless arm (a servo killed mid-correction: 3 mm in 0.3 s).
+HOLD_DAMP_AFTER_S = 0.02
+HOLD_DAMPING_TAU_S = 0.01  # the braked joint's velocity time constant (explicit physics step: 0.5 ms, stable)
 
 
 class BridgeDevice:
@@ -57,15 +63,25 @@ class BridgeDevice:
             self._holding, self.holds = True, self.holds + 1
         off_at = self._last_host_frame_s + self.watchdog_s
         end = min(now_s, off_at)
-        while world.t_s + PHYSICS_STEP_S <= end + 1e-12 and world.t_s < hold_at + self.hold_ramp_s:
-            world.currents_a = self._ramped(world.t_s - hold_at)
+        damp_at = commanded + HOLD_DAMP_AFTER_S
+        while world.t_s + PHYSICS_STEP_S <= end + 1e-12:  # the currents follow the ramp, then the brake
+            world.currents_a = self._held(world.t_s - hold_at, world.t_s >= damp_at)
             world.step()
-        world.currents_a = self._ramped(world.t_s - hold_at)
+        world.currents_a = self._held(world.t_s - hold_at, world.t_s >= damp_at)
         world.advance_to(end)
         if now_s >= off_at:
             self.tripped = True
             self._amplifiers_off()
             world.advance_to(now_s)
+
+    def _held(self, into_s: float, damped: bool) -> tuple[float, float, float]:
+        """The hold's currents: the ramp, then the hold, braked once the host has been silent too long."""
+        i0, i1, i2 = self._ramped(into_s)
+        if not damped:
+            return i0, i1, i2
+        qd, inertia = self.world.arm.qd, model.JOINT_INERTIA_KG_M2
+        b0, b1, b2 = model.torques_to_currents(tuple(-inertia[j] / HOLD_DAMPING_TAU_S * qd[j] for j in range(3)))
+        return i0 + b0, i1 + b1, i2 + b2
 
     def _ramped(self, into_s: float) -> tuple[float, float, float]:
         """Currents into_s after the ramp began: from the last command straight to the hold."""
