@@ -25,11 +25,9 @@ def make_world(clock):
 def braked(world, hold):
     """The hold currents plus the brake a silent host's hold adds for the arm's present speed (PROTOCOL.md): the
     hold (0.45 A on joint 2) is not gravity compensation here, so the arm moves, and the brake acts on it."""
-    from drivers.sim.bridge_device import HOLD_DAMPING_TAU_S
+    from drivers.sim.bridge_device import brake_currents
 
-    brake = model.torques_to_currents(tuple(-model.JOINT_INERTIA_KG_M2[j] / HOLD_DAMPING_TAU_S * world.arm.qd[j]
-                                            for j in range(3)))
-    return tuple(h + b for h, b in zip(hold, brake))
+    return tuple(h + b for h, b in zip(hold, brake_currents(world.arm.qd)))
 
 
 @pytest.fixture(params=["tcp", "pty"])

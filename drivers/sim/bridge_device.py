@@ -30,6 +30,12 @@ HOLD_DAMP_AFTER_S = 0.02
 HOLD_DAMPING_TAU_S = 0.01  # the braked joint's velocity time constant (explicit physics step: 0.5 ms, stable)
 
 
+def brake_currents(qd) -> tuple[float, float, float]:
+    """What the hold adds to brake joints turning at qd (rad/s): −(J/τ)·q̇ as motor currents (PROTOCOL.md)."""
+    inertia = model.JOINT_INERTIA_KG_M2
+    return model.torques_to_currents(tuple(-inertia[j] / HOLD_DAMPING_TAU_S * qd[j] for j in range(3)))
+
+
 class BridgeDevice:
     def __init__(self, world, watchdog_s: float = DEFAULT_WATCHDOG_S, hold_after_s: float = DEFAULT_HOLD_AFTER_S,
                  hold_ramp_s: float = DEFAULT_HOLD_RAMP_S) -> None:
@@ -79,8 +85,7 @@ class BridgeDevice:
         i0, i1, i2 = self._ramped(into_s)
         if not damped:
             return i0, i1, i2
-        qd, inertia = self.world.arm.qd, model.JOINT_INERTIA_KG_M2
-        b0, b1, b2 = model.torques_to_currents(tuple(-inertia[j] / HOLD_DAMPING_TAU_S * qd[j] for j in range(3)))
+        b0, b1, b2 = brake_currents(self.world.arm.qd)
         return i0 + b0, i1 + b1, i2 + b2
 
     def _ramped(self, into_s: float) -> tuple[float, float, float]:

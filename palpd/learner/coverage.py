@@ -29,7 +29,7 @@ OUTSIDE_STEPS = 36
 
 def unconfirmed_centre(fit, readings_xy: np.ndarray, spacing_mm: float) -> np.ndarray | None:
     """The centre of the first lump no reading has felt from inside, or None."""
-    for params in _lumps(fit):
+    for params in lump_params(fit):
         lr2, _ = shapes.log_rho2(params, readings_xy, fit.family.kind == "ellipses")
         reach = max(CONFIRM_RHO, spacing_mm / math.exp(params[2]))
         if not np.any(lr2 <= 2.0 * math.log(reach)):
@@ -53,7 +53,7 @@ def uncovered_edge(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float) -> 
 def _edge_gaps(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float):
     """For each lump: its widest unread stretch of edge (rad) and the boundary point in its middle."""
     half = np.asarray(size_mm, dtype=float) / 2.0
-    for params in _lumps(fit):
+    for params in lump_params(fit):
         ellipse = fit.family.kind == "ellipses"
         lr2, _ = shapes.log_rho2(params, readings_xy, ellipse)
         widen = spacing_mm / math.exp(params[2])
@@ -90,7 +90,8 @@ def hidden_lump_spot(excess: np.ndarray, readings_xy: np.ndarray, readings: "Rea
     return cells[best] if joint[best] >= JOINT_SIGMA else None
 
 
-def _lumps(fit) -> list[np.ndarray]:
+def lump_params(fit) -> list[np.ndarray]:
+    """Each lump's parameters of a parametric fit ([cx, cy, log R, ...], shapes.py)."""
     return [fit.theta[fit.family.lump_slice(j)] for j in range(fit.family.k)]
 
 
@@ -120,7 +121,7 @@ def near_edges(fit, xy: np.ndarray, spacing_mm: float) -> np.ndarray:
     """Which points lie in some lump's edge band (widened by the spacing): where a reading moves a
     reported centre or radius, so the only places worth scoring for them."""
     near = np.zeros(len(xy), dtype=bool)
-    for params in _lumps(fit):
+    for params in lump_params(fit):
         lr2, _ = shapes.log_rho2(params, xy, fit.family.kind == "ellipses")
         widen = 2.0 * spacing_mm / math.exp(params[2])
         inner = shapes.rho_at(params, -EDGE_LEVEL) - widen

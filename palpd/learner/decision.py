@@ -335,10 +335,7 @@ class Decision:
 
 def _discs(fit: Fit | None) -> list[tuple[np.ndarray, float]]:
     """Each lump of a parametric fit as (centre, radius: the equal-area one of an ellipse)."""
-    if fit is None:
-        return []
-    parts = [fit.theta[fit.family.lump_slice(j)] for j in range(fit.family.k)]
-    return [(p[:2], math.exp(p[2])) for p in parts]
+    return [] if fit is None else [(p[:2], math.exp(p[2])) for p in coverage.lump_params(fit)]
 
 
 def _sds(lump: LumpEstimate) -> float:
