@@ -412,3 +412,33 @@ def test_a_rival_s_lump_where_nothing_was_read_is_read_once_before_the_choice_st
     assert not learner.decided()
     probe = learner.next_probe(40)
     assert math.dist(probe, (14.0, -13.0)) < 6.0, probe  # inside the lump the ellipse left out
+
+
+def test_a_reading_that_surprises_the_chosen_fit_is_tried_as_one_lump_more():
+    """Twenty-two readings recorded from a simulated active scan of four-lumps (seed 6): two lumps chosen at
+    0.99, then a reading of 0.80 N/mm at (0, -14), where they predict tissue. Refitted from where they were,
+    the two circles slid into a compromise between the old lump and the new one, and the three circles
+    built on that compromise lost (50 nats below the three lumps the readings show): the free-form map was
+    chosen for the next ten readings. The two circles as they were, plus a lump at the surprise, is tried."""
+    from palpd.config import Settings
+    from palpd.learner.planner import make_learner
+
+    recorded = [
+        ((7.5003, 8.0004), 0.188203, 0.0003782), ((22.4999, 24.0003), 0.120057, 0.0003754), ((-7.4995, 24.0004), 0.123294, 0.0003630),
+        ((-22.4993, 8.0003), 0.127847, 0.0003466), ((-7.5007, -7.9996), 0.138790, 0.0003943), ((7.4995, -23.9997), 0.125945, 0.0003545),
+        ((22.5008, -7.9998), 0.125018, 0.0003813), ((-22.5008, -23.9992), 0.119887, 0.0003567), ((6.0003, 6.0006), 0.128131, 0.0003872),
+        ((9.0001, 9.0004), 0.406562, 0.0003802), ((22.0004, 22.0005), 0.123088, 0.0003724), ((7.9994, 11.0005), 0.349423, 0.0004101),
+        ((5.9997, 14.0004), 0.153221, 0.0003811), ((4.9994, 11.0006), 0.135570, 0.0003801), ((7.9994, 16.0003), 0.221655, 0.0003973),
+        ((13.0004, 12.0000), 0.599874, 0.0003883), ((9.9996, 15.0000), 0.525643, 0.0003836), ((-22.4999, 24.0003), 0.122404, 0.0003825),
+        ((22.5009, -24.0000), 0.206960, 0.0003632), ((29.9996, -29.9999), 0.120092, 0.0003632), ((-12.0005, -18.0000), 0.123414, 0.0003858),
+        ((0.0000, -13.9999), 0.799863, 0.0004157),
+    ]
+    learner = make_learner(Settings(), (60.0, 60.0), 6)
+    for xy, k, sd in recorded[:-1]:
+        learner.observe(xy, k, sd)
+    assert learner.choice.chosen == "circles:2"
+    learner.observe(*recorded[-1])
+    assert learner.choice.chosen == "circles:3" and learner.choice.weight >= learner.settings.confidence
+    centres = [lump.center_mm for lump in learner.lumps()]
+    assert min(math.dist(c, (0.0, -14.0)) for c in centres) < 2.0, centres  # the new lump where it was felt
+    assert min(math.dist(c, (15.0, 12.0)) for c in centres) < 1.0, centres  # the one mapped before, kept

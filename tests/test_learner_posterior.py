@@ -80,3 +80,42 @@ def test_where_the_linearisation_is_wrong_it_is_corrected():
     profile = profile_radius_sd_mm(fit, obs, priors)
     assert radius_sd_mm(fit) > 2.0 * profile
     assert radius_sd_mm(replace(fit, cov=posterior.checked_cov(fit, obs, priors))) < 1.2 * profile
+
+
+def test_a_volume_direction_moves_each_edge_parameter_alone_into_the_box():
+    """Several parameters on their priors' edge (power-law tails at 0): a direction mixing them moves one of
+    them out of the box whichever way it goes, and would be measured as having no room at all."""
+    rng = np.random.default_rng(0)
+    a = rng.normal(size=(6, 6))
+    cov = a @ a.T + 0.1 * np.eye(6)
+    theta = np.array([0.3, 0.0, -0.2, 0.0, 0.5, 0.0])  # parameters 1, 3 and 5 sit on their lower bound
+    lo, hi = np.array([-1.0, 0.0, -1.0, 0.0, -1.0, 0.0]), np.full(6, 1.0)
+    mixed = posterior._directions(cov, theta, lo, hi)
+    assert any(posterior._room(theta, d, lo, hi) == 0 and posterior._room(theta, -d, lo, hi) == 0 for d in mixed.T)
+    alone = posterior._directions(cov, theta, lo, hi, each_edge_alone=True)
+    precision = np.linalg.inv(cov)
+    for d in alone.T:
+        assert max(posterior._room(theta, d, lo, hi), posterior._room(theta, -d, lo, hi)) > 0
+        assert float(d @ precision @ d) == pytest.approx(1.0, rel=1e-6)  # still a 1-sd step by the curvature
+
+
+def test_lumps_whose_tails_sit_on_the_prior_edge_keep_their_evidence():
+    """Three sharp lumps, two or three of them fitted with the power-law tail at its prior's edge: the volume
+    check may narrow each direction, but not dock the fit tens of nats for edges it could not step along
+    (it did: -60 nats, and four lumps fitted right lost to `none`)."""
+    lumps = [((-15.0, 12.0), 6.0), ((14.0, 10.0), 7.0), ((2.0, -16.0), 6.5)]
+    for seed in (2, 3):
+        rng = np.random.default_rng(seed)
+        xy = qmc.scale(qmc.Halton(d=2, scramble=True, seed=seed).random(45), [-30, -30], [30, 30])
+        k = TISSUE + sum(0.6 / (1.0 + (np.hypot(*(xy - c).T) / r) ** 8) for c, r in lumps)
+        obs = Observations()
+        for p, value in zip(xy, k * np.exp(rng.normal(0.0, 0.005, len(xy)))):
+            obs.add(p, "fit", float(value), 0.001 * float(value))
+        hypotheses = Hypotheses((60.0, 60.0), 0.3, 0.01)
+        hypotheses.update(obs, [], float(np.median(obs.y)))
+        fit, priors = hypotheses.fits["circles:3"], hypotheses.priors(obs)
+        lo, hi = priors.bounds(fit.family)
+        on_edge = np.isfinite(hi - lo) & (np.minimum(fit.theta - lo, hi - fit.theta) <= 1e-6)
+        assert on_edge.sum() >= 2, f"seed {seed}: the case needs several parameters on an edge"
+        ratio = posterior.log_volume_ratio(fit, obs, priors)
+        assert ratio >= -0.5 * fit.family.size, f"seed {seed}: volume check {ratio:.1f} nats"

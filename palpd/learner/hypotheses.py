@@ -78,6 +78,7 @@ class Hypotheses:
         circles)."""
         priors = self.priors(obs)
         self.tissue_log = tissue_log
+        before = dict(self.fits)  # as the readings before these left them (a surprise can pull a refit astray)
         seen = ["none"]
         self.fits["none"] = self._fit(shapes.Family("circles", 0, priors.scale_mm), obs, priors, list, max_starts)
         yield self.fits["none"].work
@@ -87,8 +88,12 @@ class Hypotheses:
             if not self._unexplained(prev, obs).any():
                 break
             family = shapes.Family("circles", k, priors.scale_mm)
-            fit = self._fit(family, obs, priors, lambda: self._circle_starts(prev, obs, regions, k, priors),
-                            max_starts)
+            # a reading that surprised a likely fit of k − 1 lumps may be a lump more: that fit as it was,
+            # plus a lump there, is a start for k (its refit is pulled towards a compromise by that reading)
+            surprised = before.get(prev.name) if self._surprised_contender(before.get(prev.name), obs) else None
+            fewer = [prev] + ([surprised] if surprised is not None and k > 1 else [])
+            fit = self._fit(family, obs, priors, lambda: self._circle_starts(fewer, obs, regions, k, priors),
+                            max_starts, fresh=surprised is not None)
             if fit is None:
                 break
             self.fits[fit.name] = fit
@@ -132,13 +137,14 @@ class Hypotheses:
     def _name_of(k: int) -> str:
         return "none" if k == 0 else f"circles:{k}"
 
-    def _fit(self, family, obs, priors, new_starts, max_starts: int | None = None) -> Fit | None:
+    def _fit(self, family, obs, priors, new_starts, max_starts: int | None = None, fresh: bool = False) -> Fit | None:
         """Refit from where the hypothesis was; from fresh starts too when it is new, when the readings
-        since surprised it, or every RESTART_EVERY readings (a warm start can sit in a poor optimum)."""
+        since surprised it (or the count one fewer: they may ask for one lump more), or every
+        RESTART_EVERY readings (a warm start can sit in a poor optimum)."""
         old = self.fits.get(family.name)
         starts = [] if old is None else [old.theta]
         contender = self.weights.get(family.name, 0.0) >= CONTENDER_WEIGHT
-        if old is None or obs.n % RESTART_EVERY == 0 or (contender and self._surprised(old, obs)):
+        if old is None or obs.n % RESTART_EVERY == 0 or fresh or self._surprised_contender(old, obs):
             starts += new_starts() + ([] if old is None or not contender else _resized(old))
         starts = starts[:max_starts]
         iterations = LIGHT_ITERATIONS if max_starts is not None else 60
@@ -149,15 +155,22 @@ class Hypotheses:
         return evidence.fit(family, obs, priors, starts, self.noise_floor, None if old is None else old.noise_sd,
                             iterations)
 
+    def _surprised_contender(self, old: Fit | None, obs: Observations) -> bool:
+        return old is not None and self.weights.get(old.name, 0.0) >= CONTENDER_WEIGHT and self._surprised(old, obs)
+
     def _surprised(self, old: Fit, obs: Observations) -> bool:
         f, _ = shapes.evaluate(old.family, old.theta, obs.xy[old.n:], jacobian=False)
         total = np.sqrt(obs.sd[old.n:] ** 2 + max(old.noise_sd, self.noise_floor) ** 2)
         return bool(np.any(np.abs(obs.y[old.n:] - f) > evidence.SUPPORT_SIGMA * total))
 
     # -- starts -----------------------------------------------------------------------------------
-    def _circle_starts(self, fewer: Fit, obs, regions, k, priors) -> list[np.ndarray]:
+    def _circle_starts(self, fewer: list[Fit], obs, regions, k, priors) -> list[np.ndarray]:
+        """One lump more than each fit of k − 1 (refitted now, and as it was before: a reading that
+        surprised it pulls its refit towards a compromise, while the old fit plus a lump there explains
+        it), k-means groups of the stiff readings, and the free-form regions."""
         base = np.array([self.tissue_log, 0.0, 0.0])
-        starts = [np.concatenate([fewer.theta if k > 1 else base, lump]) for lump in self._new_lumps(fewer, obs)]
+        starts = [np.concatenate([fit.theta if k > 1 else base, lump]) for fit in fewer
+                  for lump in self._new_lumps(fit, obs)]
         clustered = self._stiff_clusters(obs, k)
         if clustered:
             starts += [np.concatenate([base, *lumps]) for lumps in clustered]
