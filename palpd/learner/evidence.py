@@ -22,6 +22,7 @@ invisible extra), and is left out.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -65,8 +66,7 @@ class Fit:
 def prior_residuals(family: shapes.Family, theta: np.ndarray, priors: Priors) -> tuple[np.ndarray, np.ndarray]:
     """The background's Gaussian prior and the no-lump-inside-another rule, as residuals with their Jacobian."""
     values = np.array([(theta[0] - priors.level) / LEVEL_SD, theta[1] / SLOPE_SD, theta[2] / SLOPE_SD])
-    rows = np.zeros((3, family.size))
-    rows[[0, 1, 2], [0, 1, 2]] = 1.0 / np.array([LEVEL_SD, SLOPE_SD, SLOPE_SD])
+    rows = _background_rows(family.size)
     if family.k < 2:
         return values, rows
     overlap, overlap_rows = _overlaps(family, theta)
@@ -76,12 +76,14 @@ def prior_residuals(family: shapes.Family, theta: np.ndarray, priors: Priors) ->
 def _overlaps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """How far each pair of lumps' centres sit inside half their summed radii (0 when apart), in OVERLAP_MM."""
     lumps = shapes.lumps_of(family, theta)
-    j, m = np.triu_indices(family.k, 1)
+    j, m = _pairs(family.k)
     dx, dy = lumps[j, 0] - lumps[m, 0], lumps[j, 1] - lumps[m, 1]
     d = np.hypot(dx, dy) + 1e-9
     ra, rb = np.exp(lumps[j, 2]), np.exp(lumps[m, 2])
     excess = 0.5 * (ra + rb) - d
     inside = excess > 0
+    if not inside.any():  # lumps apart, as nearly always: nothing to push (every fit step comes here)
+        return np.zeros(len(j)), np.zeros((len(j), family.size))
     rows = np.zeros((len(j), family.k, family.per_lump))
     pair = np.arange(len(j))
     for index, lump, sign in ((j, 0, 1.0), (m, 1, -1.0)):
@@ -90,6 +92,21 @@ def _overlaps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.
         rows[pair, index, 2] = 0.5 * (ra if lump == 0 else rb)
     rows = np.hstack([np.zeros((len(j), 3)), rows.reshape(len(j), -1)]) * inside[:, None]
     return np.where(inside, excess, 0.0) / OVERLAP_MM, rows / OVERLAP_MM
+
+
+@functools.lru_cache(maxsize=None)
+def _background_rows(size: int) -> np.ndarray:
+    """The background prior's Jacobian: constant, made once per parameter count (read-only)."""
+    rows = np.zeros((3, size))
+    rows[[0, 1, 2], [0, 1, 2]] = 1.0 / np.array([LEVEL_SD, SLOPE_SD, SLOPE_SD])
+    rows.flags.writeable = False
+    return rows
+
+
+@functools.lru_cache(maxsize=None)
+def _pairs(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The index pairs (j < m) of k lumps, made once per k: the overlap rule runs at every fit step."""
+    return np.triu_indices(k, 1)
 
 
 def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[np.ndarray],

@@ -70,13 +70,16 @@ def log_rho2(params: np.ndarray, xy: np.ndarray, ellipse: bool) -> tuple[np.ndar
     return lr2[:, 0], d[:, 0, :]
 
 
-def _log_rho2_all(lumps: np.ndarray, xy: np.ndarray, ellipse: bool) -> tuple[np.ndarray, np.ndarray]:
-    """log ρ² of every point (n) for every lump (k), and its derivatives (n × k × shape params)."""
+def _log_rho2_all(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, derivatives: bool = True):
+    """log ρ² of every point (n) for every lump (k), and its derivatives (n × k × shape params; None
+    when not asked for: most evaluations want values only)."""
     ux = xy[:, 0:1] - lumps[None, :, 0]
     uy = xy[:, 1:2] - lumps[None, :, 1]
     r2 = ux * ux + uy * uy + TINY
     lr = lumps[None, :, 2]
     if not ellipse:
+        if not derivatives:
+            return np.log(r2) - 2.0 * lr, None
         d = np.stack([-2.0 * ux / r2, -2.0 * uy / r2, np.full(r2.shape, -2.0)], axis=2)
         return np.log(r2) - 2.0 * lr, d
     e1, e2 = lumps[:, 3], lumps[:, 4]
@@ -85,6 +88,8 @@ def _log_rho2_all(lumps: np.ndarray, xy: np.ndarray, ellipse: bool) -> tuple[np.
     uxx, uyy = ux * ux - uy * uy, ux * uy
     q = e1 * uxx + 2.0 * e2 * uyy
     big_q = np.maximum(cosh * r2 - sinh_over * q, TINY)
+    if not derivatives:
+        return np.log(big_q) - 2.0 * lr, None
     dq_dux = 2.0 * cosh * ux - sinh_over * (2.0 * e1 * ux + 2.0 * e2 * uy)
     dq_duy = 2.0 * cosh * uy - sinh_over * (-2.0 * e1 * uy + 2.0 * e2 * ux)
     dq_de1 = sinh_over * e1 * r2 - d_sinh_over * e1 * q - sinh_over * uxx
@@ -105,10 +110,10 @@ def _d_sinh_over_by_eps(eps: np.ndarray) -> np.ndarray:
 
 def _heights(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, jacobian: bool):
     """a·p(x) of every lump (n × k) and, if asked, its derivatives (n × k × per-lump params)."""
-    lr2, d_lr2 = _log_rho2_all(lumps, xy, ellipse)
+    lr2, d_lr2 = _log_rho2_all(lumps, xy, ellipse, jacobian)
     tail, s, a = lumps[:, -3], np.exp(lumps[:, -2]), np.exp(lumps[:, -1])
     log_u = np.clip(0.5 * s * lr2, -700.0, 50.0)  # u = ρ^s
-    t, dt_dlog_u, dt_dtail = _log_h(log_u, tail)
+    t, dt_dlog_u, dt_dtail = _log_h(log_u, tail, jacobian)
     t = np.clip(t, -700.0, 700.0)
     p = 1.0 / (1.0 + np.exp(t))
     if not jacobian:
@@ -122,22 +127,26 @@ def _heights(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, jacobian: bool):
     return a * p, jac
 
 
-def _log_h(log_u: np.ndarray, tail: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """t = log h for u = e^log_u (n × k), with dt/dlog u and dt/dλ; the Hill limit (λ = 0) by its series."""
-    t, dt_dlog_u, dt_dtail = np.empty_like(log_u), np.empty_like(log_u), np.empty_like(log_u)
+def _log_h(log_u: np.ndarray, tail: np.ndarray, derivatives: bool = True):
+    """t = log h for u = e^log_u (n × k), with dt/dlog u and dt/dλ (None, None when not asked for);
+    the Hill limit (λ = 0) by its series."""
+    t = np.empty_like(log_u)
+    dt_dlog_u, dt_dtail = (np.empty_like(log_u), np.empty_like(log_u)) if derivatives else (None, None)
     for j, lam in enumerate(tail):  # one branch per lump, never both on every point
         lu = log_u[:, j]
         u = np.exp(lu)
         if lam < 1e-4:
             t[:, j] = lu + lam * (u - 1.0) / 2.0
-            dt_dlog_u[:, j] = 1.0 + lam * u / 2.0
-            dt_dtail[:, j] = (u - 1.0) / 2.0
+            if derivatives:
+                dt_dlog_u[:, j] = 1.0 + lam * u / 2.0
+                dt_dtail[:, j] = (u - 1.0) / 2.0
             continue
         x = np.maximum(lam * u, 1e-300)
         one_minus = -np.expm1(-x)  # 1 − e^{−x}
         t[:, j] = np.where(x > 1e-8, x + np.log(np.maximum(one_minus, 1e-300)), np.log(x)) - math.log(math.expm1(lam))
-        dt_dlog_u[:, j] = x / np.maximum(one_minus, 1e-300)
-        dt_dtail[:, j] = u / np.maximum(one_minus, 1e-300) + 1.0 / math.expm1(-lam)
+        if derivatives:
+            dt_dlog_u[:, j] = x / np.maximum(one_minus, 1e-300)
+            dt_dtail[:, j] = u / np.maximum(one_minus, 1e-300) + 1.0 / math.expm1(-lam)
     return t, dt_dlog_u, dt_dtail
 
 
