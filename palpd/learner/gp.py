@@ -213,7 +213,8 @@ def fit_hyper(xy: np.ndarray, y: np.ndarray, noise_var: np.ndarray, start: Hyper
     holds the two together), written over this module's kernel so that a learner does not import
     scikit-learn: its import (with scipy.stats) cost every daemon and scan process ~0.75 s of CPU.
     """
-    from scipy.optimize import minimize  # here: slow to import (~0.5 s), and only a relearn needs it
+    from scipy.optimize import minimize  # here: slow to import (~0.5 s), and only a relearn needs it (a Learner
+    #                                        imports it as it is built, so that no update pays for it)
 
     scale = start.scale_mm  # the optimiser works in half-sizes, where the plane's slopes are per unit
     u = xy / scale

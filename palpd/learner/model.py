@@ -32,6 +32,10 @@ REFITS_PER_DOUBLING = 30  # ...and there are this many refits while the readings
 class Learner(Decision):
     def __init__(self, size_mm: tuple[float, float], settings, min_contrast: float = 0.3, seed: int = 0,
                  travel_mm_per_palpation: float = 100.0, supervised_tau_n_per_mm: float | None = None) -> None:
+        # the kernel relearn (gp.fit_hyper) needs scipy.optimize from the third reading on; importing it costs
+        # ~0.1-0.5 s of CPU, paid here, as the learner is built, rather than inside that reading's update
+        import scipy.optimize  # noqa: F401
+
         self.settings = settings
         self.size_mm = (float(size_mm[0]), float(size_mm[1]))
         self.supervised_tau_n_per_mm = supervised_tau_n_per_mm  # None: τ from the data (unsupervised)
