@@ -80,7 +80,10 @@ def _log_rho2_all(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, derivatives:
     if not ellipse:
         if not derivatives:
             return np.log(r2) - 2.0 * lr, None
-        d = np.stack([-2.0 * ux / r2, -2.0 * uy / r2, np.full(r2.shape, -2.0)], axis=2)
+        d = np.empty(r2.shape + (3,))
+        d[:, :, 0] = -2.0 * ux / r2
+        d[:, :, 1] = -2.0 * uy / r2
+        d[:, :, 2] = -2.0
         return np.log(r2) - 2.0 * lr, d
     e1, e2 = lumps[:, 3], lumps[:, 4]
     eps = np.hypot(e1, e2)
@@ -112,9 +115,11 @@ def _heights(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, jacobian: bool):
     """a·p(x) of every lump (n × k) and, if asked, its derivatives (n × k × per-lump params)."""
     lr2, d_lr2 = _log_rho2_all(lumps, xy, ellipse, jacobian)
     tail, s, a = lumps[:, -3], np.exp(lumps[:, -2]), np.exp(lumps[:, -1])
-    log_u = np.clip(0.5 * s * lr2, -700.0, 50.0)  # u = ρ^s
+    # np.minimum/np.maximum rather than np.clip (the same values): this runs at every fit step, and
+    # np.clip's Python wrapper cost more than the arithmetic on a few dozen readings
+    log_u = np.minimum(np.maximum(0.5 * s * lr2, -700.0), 50.0)  # u = ρ^s
     t, dt_dlog_u, dt_dtail = _log_h(log_u, tail, jacobian)
-    t = np.clip(t, -700.0, 700.0)
+    t = np.minimum(np.maximum(t, -700.0), 700.0)
     p = 1.0 / (1.0 + np.exp(t))
     if not jacobian:
         return a * p, None
@@ -191,9 +196,10 @@ def evaluate(family: Family, theta: np.ndarray, xy: np.ndarray, jacobian: bool =
     f = base + np.log1p(m)
     if not jacobian:
         return f, None
-    jac = np.zeros((len(xy), family.k, family.per_lump))
-    jac[rows, top] = jacs[rows, top] / (1.0 + m[:, None])
-    return f, np.hstack([_background_jac(xy, family.scale_mm), jac.reshape(len(xy), -1)])
+    out = np.zeros((len(xy), family.size))  # the background's columns, then each lump's (only the top one's set)
+    out[:, :BACKGROUND_PARAMS] = _background_jac(xy, family.scale_mm)
+    out[:, BACKGROUND_PARAMS:].reshape(len(xy), family.k, family.per_lump)[rows, top] = jacs[rows, top] / (1.0 + m[:, None])
+    return f, out
 
 
 def heights_of(family: Family, theta: np.ndarray, xy: np.ndarray) -> np.ndarray:
