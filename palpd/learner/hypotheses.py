@@ -90,7 +90,8 @@ class Hypotheses:
             family = shapes.Family("circles", k, priors.scale_mm)
             # a reading that surprised a likely fit of k − 1 lumps may be a lump more: that fit as it was,
             # plus a lump there, is a start for k (its refit is pulled towards a compromise by that reading)
-            surprised = before.get(prev.name) if self._surprised_contender(before.get(prev.name), obs) else None
+            was = before.get(prev.name)
+            surprised = was if self._surprised_contender(was, obs) else None
             fewer = [prev] + ([surprised] if surprised is not None and k > 1 else [])
             fit = self._fit(family, obs, priors, lambda: self._circle_starts(fewer, obs, regions, k, priors),
                             max_starts, fresh=surprised is not None)

@@ -198,7 +198,8 @@ def evaluate(family: Family, theta: np.ndarray, xy: np.ndarray, jacobian: bool =
         return f, None
     out = np.zeros((len(xy), family.size))  # the background's columns, then each lump's (only the top one's set)
     out[:, :BACKGROUND_PARAMS] = _background_jac(xy, family.scale_mm)
-    out[:, BACKGROUND_PARAMS:].reshape(len(xy), family.k, family.per_lump)[rows, top] = jacs[rows, top] / (1.0 + m[:, None])
+    per_lump = out[:, BACKGROUND_PARAMS:].reshape(len(xy), family.k, family.per_lump)  # a view: splits one axis
+    per_lump[rows, top] = jacs[rows, top] / (1.0 + m[:, None])
     return f, out
 
 
