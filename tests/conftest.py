@@ -50,8 +50,8 @@ def assert_one_line_error(result: subprocess.CompletedProcess, *fragments: str) 
 
 
 # Tests whose servo loop runs on the wall clock (a real-time servo process, a separately started simulator, a
-# timed bench). `make test` runs two xdist workers; these share one worker, one at a time, so two real-time
-# loops never compete for the two cores while the other worker keeps the CPU-bound (virtual-time) tests going.
+# timed bench). `make test` runs three xdist workers; these share one worker, one at a time, so two real-time
+# loops never compete for the two cores while the others keep the CPU-bound (virtual-time) tests going.
 WALL_CLOCK_MODULES = {"test_simulate", "test_serve_remote", "test_servo_process", "test_bench_servo", "test_bridge",
                       "test_netft", "test_usb"}
 WALL_CLOCK_GROUP = "wall_clock"
