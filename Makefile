@@ -18,8 +18,8 @@ run: $(BIN)/palpd
 		--report $(OUT)/paper-report.json --plot $(OUT)/paper-map.png
 
 # Three workers on two cores: the suite is CPU-bound, and beside another busy process (a CPU hog) a third
-# worker takes 3/4 of the cores' share instead of 2/3 (five runs beside a hog: 155-158 s with two, 144-149 s
-# with three; idle the same within a few seconds). Each module stays on one worker, and the wall-clock modules
+# worker takes 3/4 of the cores' share instead of 2/3 (five runs beside a hog: 155-158 s with two, 145-153 s
+# with three; idle 116 -> 107 s; four workers gave 149 s, no better). Each module stays on one worker, and the wall-clock modules
 # share one (tests/conftest.py), so two real-time loops never run at once.
 # PYTHONDONTWRITEBYTECODE emptied: the suite starts ~150 Python processes (CLIs, daemons, servo processes),
 # and with bytecode caching off (some shells set it) each compiles palpd afresh (~0.1 s of CPU each).
