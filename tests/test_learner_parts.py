@@ -10,7 +10,7 @@ import pytest
 from hypothesis import example, given, settings as hsettings, strategies as st
 
 from palpd import metrics
-from palpd.learner.gp import JITTER, Hyper, IncrementalGP, fit_hyper
+from palpd.learner.gp import JITTER, PENDING_ROWS, Hyper, IncrementalGP, fit_hyper
 from palpd.learner.hypotheses import Hypotheses
 from palpd.learner.observations import Observations
 
@@ -29,6 +29,7 @@ def test_a_one_block_refit_equals_the_row_by_row_posterior_and_survives_duplicat
     rows, read_each_time = IncrementalGP(grid(), hyper), IncrementalGP(grid(), hyper)
     for p, v in zip(xy, y):
         rows.add(p, v, 1e-4)
+        assert rows._pending <= PENDING_ROWS  # never left to one flush of every row, however long unread
         read_each_time.add(p, v, 1e-4)
         read_each_time.var  # the grid's rows one at a time, where `rows` makes them in one block when asked
     assert read_each_time.mean == pytest.approx(rows.mean, abs=1e-5)
