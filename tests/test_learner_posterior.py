@@ -119,3 +119,30 @@ def test_lumps_whose_tails_sit_on_the_prior_edge_keep_their_evidence():
         assert on_edge.sum() >= 2, f"seed {seed}: the case needs several parameters on an edge"
         ratio = posterior.log_volume_ratio(fit, obs, priors)
         assert ratio >= -0.5 * fit.family.size, f"seed {seed}: volume check {ratio:.1f} nats"
+
+
+def test_a_radius_the_readings_leave_on_a_ridge_is_reported_as_unsure_as_the_ridge_is_long():
+    """A lump read on a 6 mm lattice whose core readings all hit the force limit (each only 'at least
+    0.6 N/mm'): a broad lump and a narrower, much stiffer one with a softer edge explain the edge readings
+    alike, so the radius lies on a ridge of the posterior. The fit's starts end on both: 6.1 mm (chosen)
+    and 9.0 mm (the truth), as high to ½ nat. The Laplace covariance and its straight-line check said
+    6.07 ± 0.29 mm, 10 sd from the truth; the spread of the modes as likely must be in the reported sd."""
+    from drivers.sim.tissue import lump_profile, lump_sharpness
+
+    centre, radius = (5.0, -3.0), 9.0
+    obs = Observations()
+    axis = np.arange(-27.0, 27.1, 6.0)
+    for p in [(x, y) for x in axis for y in axis]:  # as the simulator feels a lump 2 mm deep
+        k = TISSUE + (0.8 - TISSUE) * lump_profile(math.dist(p, centre), radius, lump_sharpness(radius, 2.0))
+        if k >= 0.6:
+            obs.add(p, "too_stiff", 0.6, 0.0)
+        else:
+            obs.add(p, "fit", k, 0.0004)
+    hypotheses = Hypotheses((60.0, 60.0), 0.3, 0.01)
+    hypotheses.update(obs, [], math.log(TISSUE))
+    fit = hypotheses.checked("circles:1", obs)
+    assert fit.alternatives, "the case needs modes as likely as the chosen one"
+    (lump,) = describe.lumps_of(fit)
+    for other in fit.alternatives:
+        assert abs(math.exp(other[5]) - lump.radius_mm) <= 1.5 * lump.radius_sd_mm
+    assert abs(lump.radius_mm - radius) <= 2.0 * lump.radius_sd_mm, (lump.radius_mm, lump.radius_sd_mm)

@@ -39,6 +39,7 @@ ADEQUATE_NOISE = 2.0  # σ_w beyond this multiple of the floor: the model misses
 OVERLAP_MM = 0.25  # softness of the rule that lumps do not sit inside one another
 HOPELESS = 30.0  # nats: a start this far below the best one's height is dropped (after GIVE_UP_AFTER steps)
 GIVE_UP_AFTER = 8
+RIDGE_NATS = 0.5  # a mode this little below the chosen one is as likely as the points 1 sd from it
 CALL_OVERHEAD = 1000  # an evaluation's fixed cost, in residual entries (Python and numpy call overhead)
 COST_TOLERANCE = 1e-4  # nats: a fit is done when a step gains less (evidences differ by whole nats)
 
@@ -57,6 +58,7 @@ class Fit:
     work: int = 0  # what the fit cost, in evaluated residual entries (deterministic, unlike a clock)
     checked: bool = False  # cov checked against the posterior along its widest directions (posterior.py)
     evidence_checked: bool = False  # log_evidence with the posterior's volume measured (posterior.py)
+    alternatives: tuple = ()  # other modes the starts reached, as high as this one (within RIDGE_NATS)
 
     @property
     def name(self) -> str:
@@ -118,7 +120,7 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
     readings say whatever the details, and the second holds far more posterior mass."""
     lo, hi = priors.bounds(family)
     noise = max(noise_sd or noise_floor, noise_floor)
-    best, lowest, calls = None, np.inf, 0
+    best, lowest, calls, modes = None, np.inf, 0, []
     for start in starts:
         theta, cost, used = _solve(family, obs, priors, _inside(start, lo, hi), lo, hi, noise,
                                    (GIVE_UP_AFTER, lowest + HOPELESS), max_iter)
@@ -126,10 +128,12 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
         if cost > lowest + HOPELESS:
             continue
         mode = _evidence(family, theta, obs, priors, noise, noise_floor)
+        modes.append(mode)
         if best is None or mode.log_evidence > best.log_evidence:
             best = mode
     if best is None:
         return None
+    alternatives = _alternatives(best, modes)
     theta = best.theta
     for _ in range(2):  # σ_w from the residuals, then the fit again at that σ_w
         f, _ = shapes.evaluate(family, theta, obs.xy, jacobian=False)
@@ -141,7 +145,15 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
         theta, _, used = _solve(family, obs, priors, theta, lo, hi, noise, max_iter=max_iter)
         calls += used
     return replace(_evidence(family, theta, obs, priors, noise, noise_floor),
-                   work=calls * (CALL_OVERHEAD + obs.n * family.size))
+                   work=calls * (CALL_OVERHEAD + obs.n * family.size), alternatives=alternatives)
+
+
+def _alternatives(best: Fit, modes: list[Fit]) -> tuple:
+    """The modes as high as the chosen one (within RIDGE_NATS) and more than 1 sd from it by its curvature:
+    the posterior is a ridge there, wider than the Laplace covariance at any one point of it says."""
+    precision = np.linalg.pinv(best.cov)
+    return tuple(mode.theta for mode in modes if mode.log_posterior >= best.log_posterior - RIDGE_NATS
+                 and float((mode.theta - best.theta) @ precision @ (mode.theta - best.theta)) > 1.0)
 
 
 def _inside(theta: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
