@@ -164,6 +164,25 @@ def test_censored_readings_are_bounds_not_missing_data():
     assert TISSUE * (1.0 + math.exp(fit.theta[-1])) > 0.6  # the lump's stiffness: beyond every bound
 
 
+def test_a_lump_read_only_at_the_force_limit_is_found():
+    """A lump whose every reading hit the force limit ('too stiff': each only at least 0.6 N/mm, 5x the
+    tissue) and none on its edge. No exact reading lay above the plain-tissue fit, so one lump was never
+    tried, and a lump felt only at bounds did not count as felt: `none` was chosen at weight 1.0."""
+    k_at = field([((5.0, -3.0), 9.0, 2.0, 0.8)])
+    learner = Learner((60.0, 60.0), LearnerSettings(grid_points=21, initial_points=0), 0.3, 0)
+    axis = np.arange(-27.0, 27.1, 6.0)
+    for xy in [(x, y) for x in axis for y in axis]:
+        k = k_at(xy)
+        if k >= 0.6:
+            learner.observe(xy, None, outcome="too_stiff", bound_n_per_mm=0.6)
+        elif k < 1.05 * TISSUE:  # the edge readings left out: nothing but the bounds says a lump is there
+            learner.observe(xy, k, 0.0004)
+    assert np.count_nonzero(learner.obs.kind == 1) >= 4
+    assert learner.model()["chosen"] in ("circles:1", "ellipse:1"), learner.model()
+    (lump,) = learner.lumps()
+    assert math.dist(lump.center_mm, (5.0, -3.0)) <= 3.0, lump
+
+
 def test_a_too_soft_bound_keeps_a_spot_out_of_a_lump():
     learner = Learner((60.0, 60.0), LearnerSettings(grid_points=41, initial_points=0), 0.3, 0)
     for x in (-20.0, -10.0, 0.0, 10.0, 20.0):

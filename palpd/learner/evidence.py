@@ -32,7 +32,7 @@ from palpd.learner import shapes
 from palpd.learner.priors import LEVEL_SD, SLOPE_SD, Priors  # noqa: F401  (Priors: part of this API)
 from palpd.learner.likelihood import log_likelihood, noise_sd_ml, residuals
 from palpd.learner.solver import levenberg_marquardt
-from palpd.learner.observations import EXACT, Observations
+from palpd.learner.observations import AT_LEAST, EXACT, Observations
 
 SUPPORT_SIGMA = 3.0
 ADEQUATE_NOISE = 2.0  # σ_w beyond this multiple of the floor: the model misses something (decision.py)
@@ -242,25 +242,32 @@ def _gaussian_prior_norm(family) -> float:
 
 
 def supported(family: shapes.Family, theta: np.ndarray, obs: Observations, noise: float) -> bool:
-    """Every lump is felt at some exact reading: it is the lump felt most there, and taking it away
-    changes the prediction by SUPPORT_SIGMA of that reading's noise at the floor (`noise`; not the
-    fit's own σ_w, which an unexplained lump elsewhere inflates)."""
+    """Every lump is felt at some reading: it is the lump felt most there, and taking it away changes
+    an exact reading's prediction by SUPPORT_SIGMA of its noise at the floor (`noise`; not the fit's own
+    σ_w, which an unexplained lump elsewhere inflates), or leaves a lower bound ('too stiff') that far
+    above the prediction: a lump whose core readings all hit the force limit is felt there."""
     return not unfelt(family, theta, obs, noise)
 
 
 def unfelt(family: shapes.Family, theta: np.ndarray, obs: Observations, noise: float) -> list[int]:
-    """The lumps no exact reading feels (see `supported`)."""
+    """The lumps no reading feels (see `supported`)."""
     if family.k == 0:
         return []
-    exact = obs.exact
-    heights = shapes.heights_of(family, theta, obs.xy)[exact]
-    total = np.sqrt(obs.sd[exact] ** 2 + noise**2)
+    usable = obs.kind >= 0  # exact readings and lower bounds
+    heights = shapes.heights_of(family, theta, obs.xy)[usable]
+    total = np.sqrt(obs.sd[usable] ** 2 + noise**2)
     top = np.log1p(heights.max(axis=1))
     felt = np.argmax(heights, axis=1)
+    # a bound is felt by how far it would lie above the prediction without the lump, y − (f − top + without)
+    slack = np.zeros(len(top))
+    bound = obs.kind[usable] == AT_LEAST
+    if bound.any():
+        f, _ = shapes.evaluate(family, theta, obs.xy[usable][bound], jacobian=False)
+        slack[bound] = obs.y[usable][bound] - f
     out = []
     for j in range(family.k):
         others = np.delete(heights, j, axis=1)
         without = np.log1p(others.max(axis=1)) if others.shape[1] else np.zeros(len(top))
-        if not np.any(((top - without) >= SUPPORT_SIGMA * total) & (felt == j)):
+        if not np.any(((top - without + slack) >= SUPPORT_SIGMA * total) & (felt == j)):
             out.append(j)
     return out
