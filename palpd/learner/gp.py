@@ -155,8 +155,8 @@ class IncrementalGP:
 
     def _append_row(self, i: int) -> None:
         """Row i of the factor, of w and of log det: O(i²). Its row of V = L⁻¹ K(points, grid), O(i·G),
-        waits until the grid is asked for (_flush): while a parametric model is chosen, most updates
-        never look at the free-form map."""
+        waits until the grid is asked for or PENDING_ROWS are pending (_flush): while a parametric model
+        is chosen, most updates never look at the free-form map."""
         if i >= self._L.shape[0]:
             self._grow(2 * self._L.shape[0])
         h, p = self.hyper, self.xy[i:i + 1]
