@@ -306,8 +306,9 @@ def test_the_lump_whose_edge_no_reading_touched_is_probed_before_a_gap_left_on_a
 
 def test_a_free_form_map_that_needs_more_noise_than_readings_have_is_probed_on_its_boundary():
     """Thirteen first readings (recorded from a simulated active scan of the measured half-stiff map, seed 0):
-    the free-form map is chosen and needs more than twice the readings' noise (the map's own texture), so it
-    is not adequate, and there is nothing more flexible to compare it with. The next probe goes where the
+    the free-form map is chosen and needs more than twice the readings' noise (the map's own texture). It is
+    the model of last resort, so that is no reason to go on (held to the parametric fits' bar, the measured map
+    ended `undetermined` at IoU 0.99 on seeds 3-6), and there is nothing more flexible to compare it with. The next probe goes where the
     map is least sure which side of its boundary a spot lies. Scored by the free-form's disagreement with
     itself (0 at every cell) it went to the spot farthest from every probe, the tissue's edge: a measured
     map's corners and edges were read while its boundary stayed as unsure."""
@@ -324,7 +325,10 @@ def test_a_free_form_map_that_needs_more_noise_than_readings_have_is_probed_on_i
     learner = make_learner(Settings(), (60.0, 60.0), 0)
     for xy, k, sd in recorded:
         learner.observe(xy, k, sd)
-    assert learner.choice.chosen == "free-form" and learner.choice.weight >= 0.9 and not learner._adequate()
+    from palpd.learner.evidence import ADEQUATE_NOISE
+
+    assert learner.choice.chosen == "free-form" and learner.choice.weight >= 0.9
+    assert learner._chosen_noise_sd() > ADEQUATE_NOISE * learner.noise_floor and learner._adequate()
     m = learner.free_form_map()
 
     def stiff_probability(xy):
