@@ -183,6 +183,28 @@ def test_a_lump_read_only_at_the_force_limit_is_found():
     assert math.dist(lump.center_mm, (5.0, -3.0)) <= 3.0, lump
 
 
+def test_where_readings_come_back_too_stiff_a_probe_is_worth_little():
+    """Inside a lump whose readings hit the force limit, a probe is a bound again, which says nothing about
+    where the edge is. The next probe's worth there is the chance the reading is a stiffness: a 200 N/mm
+    lump in 0.5 N/mm tissue (simulated, palpation.too_stiff = "bound") spent 9 of 30 probes on bounds and
+    now 5 of 25, pinned as well."""
+    k_at = field([((5.0, -3.0), 9.0, 2.0, 0.8)])
+    learner = Learner((60.0, 60.0), LearnerSettings(grid_points=21, initial_points=0), 0.3, 0)
+    axis = np.arange(-27.0, 27.1, 6.0)
+    for xy in [(x, y) for x in axis for y in axis]:
+        k = k_at(xy)
+        if k >= 0.6:
+            learner.observe(xy, None, outcome="too_stiff", bound_n_per_mm=0.6)
+        else:
+            learner.observe(xy, k, 0.0004)
+    fit = learner.chosen_fit()
+    assert fit is not None and fit.family.k == 1
+    # the lump's centre, 8 mm out on its 9 mm radius, and plain tissue: a stiffness there is unlikely (the
+    # lump's height, read only as bounds, is unsure: ~1 in 5), more likely, and certain
+    inside, edge, outside = learner._readable(fit, np.array([[5.0, -3.0], [5.0, -11.0], [-20.0, 20.0]]))
+    assert inside < 0.3 and inside < edge < 0.99 and outside > 0.99, (inside, edge, outside)
+
+
 def test_a_too_soft_bound_keeps_a_spot_out_of_a_lump():
     learner = Learner((60.0, 60.0), LearnerSettings(grid_points=41, initial_points=0), 0.3, 0)
     for x in (-20.0, -10.0, 0.0, 10.0, 20.0):

@@ -13,11 +13,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.special import ndtr
 
 from palpd.estimate import LumpEstimate
 from palpd.learner import acquisition, coverage, describe, shapes
 from palpd.learner.evidence import ADEQUATE_NOISE, Fit
 from palpd.learner.lumps import find_lumps
+from palpd.learner.observations import AT_LEAST
 from palpd.learner.threshold import lump_points, surely_above
 
 MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model's parameter count
@@ -310,11 +312,24 @@ class Decision:
             near = coverage.near_edges(fit, xy, self.settings.min_spacing_mm)  # where a centre or radius is read
             # where to probe by the Laplace covariance: its widest directions are where the posterior
             # is still unexplored (checked, they are narrow only along the line that was looked at)
-            score[near] = acquisition.boundary_gain(self.hypotheses.laplace(self.choice.chosen), xy[near],
-                                                    self._noise_var())
+            laplace = self.hypotheses.laplace(self.choice.chosen)
+            score[near] = acquisition.boundary_gain(laplace, xy[near], self._noise_var()) * self._readable(laplace,
+                                                                                                           xy[near])
             return score
         tau = np.log(self.free_form_map().tau).ravel()[cells]
         return acquisition.straddle(self.gp.mean[cells], self.gp.std()[cells], tau, self.settings.confidence)
+
+    def _readable(self, fit: Fit, xy: np.ndarray) -> np.ndarray | float:
+        """The chance a reading at each spot is a stiffness, not 'too stiff' again: the fit's predicted log
+        stiffness below the force limit's bound (the median of the 'too stiff' bounds so far). A bound deep
+        inside a lump says nothing about where its edge is: a lump read 'too stiff' inside drew probe after
+        probe to its interior, each a bound again, while its radius stayed unread."""
+        bounds = self.obs.y[self.obs.kind == AT_LEAST]
+        if not len(bounds):
+            return 1.0
+        mean, var, _ = acquisition.moments(fit, xy)
+        z = (float(np.median(bounds)) - mean) / np.sqrt(var + self._noise_var())
+        return ndtr(z)
 
     def _moments(self, fit: Fit | None, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """A hypothesis's predictive mean and variance at the cells (the free-form map's without a fit)."""
