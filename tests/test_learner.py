@@ -164,10 +164,9 @@ def test_censored_readings_are_bounds_not_missing_data():
     assert TISSUE * (1.0 + math.exp(fit.theta[-1])) > 0.6  # the lump's stiffness: beyond every bound
 
 
-def test_a_lump_read_only_at_the_force_limit_is_found():
-    """A lump whose every reading hit the force limit ('too stiff': each only at least 0.6 N/mm, 5x the
-    tissue) and none on its edge. No exact reading lay above the plain-tissue fit, so one lump was never
-    tried, and a lump felt only at bounds did not count as felt: `none` was chosen at weight 1.0."""
+def read_at_the_force_limit(keep_edge: bool) -> Learner:
+    """A 9 mm lump at (5, -3), 0.8 N/mm, read on a 6 mm lattice where every reading of 0.6 N/mm or more is
+    only 'too stiff' (at least 0.6); with keep_edge=False the readings on its edge are left out too."""
     k_at = field([((5.0, -3.0), 9.0, 2.0, 0.8)])
     learner = Learner((60.0, 60.0), LearnerSettings(grid_points=21, initial_points=0), 0.3, 0)
     axis = np.arange(-27.0, 27.1, 6.0)
@@ -175,8 +174,16 @@ def test_a_lump_read_only_at_the_force_limit_is_found():
         k = k_at(xy)
         if k >= 0.6:
             learner.observe(xy, None, outcome="too_stiff", bound_n_per_mm=0.6)
-        elif k < 1.05 * TISSUE:  # the edge readings left out: nothing but the bounds says a lump is there
+        elif keep_edge or k < 1.05 * TISSUE:
             learner.observe(xy, k, 0.0004)
+    return learner
+
+
+def test_a_lump_read_only_at_the_force_limit_is_found():
+    """A lump whose every reading hit the force limit ('too stiff': each only at least 0.6 N/mm, 5x the
+    tissue) and none on its edge. No exact reading lay above the plain-tissue fit, so one lump was never
+    tried, and a lump felt only at bounds did not count as felt: `none` was chosen at weight 1.0."""
+    learner = read_at_the_force_limit(keep_edge=False)  # nothing but the bounds says a lump is there
     assert np.count_nonzero(learner.obs.kind == 1) >= 4
     assert learner.model()["chosen"] in ("circles:1", "ellipse:1"), learner.model()
     (lump,) = learner.lumps()
@@ -188,15 +195,7 @@ def test_where_readings_come_back_too_stiff_a_probe_is_worth_little():
     where the edge is. The next probe's worth there is the chance the reading is a stiffness: a 200 N/mm
     lump in 0.5 N/mm tissue (simulated, palpation.too_stiff = "bound") spent 9 of 30 probes on bounds and
     now 5 of 25, pinned as well."""
-    k_at = field([((5.0, -3.0), 9.0, 2.0, 0.8)])
-    learner = Learner((60.0, 60.0), LearnerSettings(grid_points=21, initial_points=0), 0.3, 0)
-    axis = np.arange(-27.0, 27.1, 6.0)
-    for xy in [(x, y) for x in axis for y in axis]:
-        k = k_at(xy)
-        if k >= 0.6:
-            learner.observe(xy, None, outcome="too_stiff", bound_n_per_mm=0.6)
-        else:
-            learner.observe(xy, k, 0.0004)
+    learner = read_at_the_force_limit(keep_edge=True)
     fit = learner.chosen_fit()
     assert fit is not None and fit.family.k == 1
     # the lump's centre, 8 mm out on its 9 mm radius, and plain tissue: a stiffness there is unlikely (the
