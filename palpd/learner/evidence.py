@@ -29,15 +29,16 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from palpd.learner import shapes
+from palpd.learner.shapes import BACKGROUND_PARAMS as BACKGROUND
 from palpd.learner.priors import LEVEL_SD, SLOPE_SD, Priors  # noqa: F401  (Priors: part of this API)
 from palpd.learner.likelihood import log_likelihood, noise_sd_ml, residuals
-from palpd.learner.solver import levenberg_marquardt
+from palpd.learner.solver import levenberg_marquardt, levenberg_marquardt_many
 from palpd.learner.observations import AT_LEAST, EXACT, Observations
 
 SUPPORT_SIGMA = 3.0
 ADEQUATE_NOISE = 2.0  # σ_w beyond this multiple of the floor: the model misses something (decision.py)
 OVERLAP_MM = 0.25  # softness of the rule that lumps do not sit inside one another
-HOPELESS = 30.0  # nats: a start this far below the best one's height is dropped (after GIVE_UP_AFTER steps)
+HOPELESS = 30.0  # nats: a start this far below the height a start before it reached is dropped (after GIVE_UP_AFTER steps)
 GIVE_UP_AFTER = 8
 RIDGE_NATS = 0.5  # a mode this little below the chosen one is as likely as the points 1 sd from it
 CALL_OVERHEAD = 1000  # an evaluation's fixed cost, in residual entries (Python and numpy call overhead)
@@ -66,34 +67,36 @@ class Fit:
 
 
 def prior_residuals(family: shapes.Family, theta: np.ndarray, priors: Priors) -> tuple[np.ndarray, np.ndarray]:
-    """The background's Gaussian prior and the no-lump-inside-another rule, as residuals with their Jacobian."""
-    values = np.array([(theta[0] - priors.level) / LEVEL_SD, theta[1] / SLOPE_SD, theta[2] / SLOPE_SD])
-    rows = _background_rows(family.size)
+    """The background's Gaussian prior and the no-lump-inside-another rule, as residuals with their Jacobian
+    (for S parameter vectors at once too: theta S × size gives S of each)."""
+    values = (theta[..., :BACKGROUND] - (priors.level, 0.0, 0.0)) / (LEVEL_SD, SLOPE_SD, SLOPE_SD)
+    rows = np.broadcast_to(_background_rows(family.size), theta.shape[:-1] + (3, family.size))
     if family.k < 2:
         return values, rows
     overlap, overlap_rows = _overlaps(family, theta)
-    return np.concatenate([values, overlap]), np.vstack([rows, overlap_rows])
+    return np.concatenate([values, overlap], axis=-1), np.concatenate([rows, overlap_rows], axis=-2)
 
 
 def _overlaps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """How far each pair of lumps' centres sit inside half their summed radii (0 when apart), in OVERLAP_MM."""
-    lumps = shapes.lumps_of(family, theta)
+    lead = theta.shape[:-1]
+    lumps = theta[..., BACKGROUND:].reshape(lead + (family.k, family.per_lump))
     j, m = _pairs(family.k)
-    dx, dy = lumps[j, 0] - lumps[m, 0], lumps[j, 1] - lumps[m, 1]
+    dx, dy = lumps[..., j, 0] - lumps[..., m, 0], lumps[..., j, 1] - lumps[..., m, 1]
     d = np.hypot(dx, dy) + 1e-9
-    ra, rb = np.exp(lumps[j, 2]), np.exp(lumps[m, 2])
+    ra, rb = np.exp(lumps[..., j, 2]), np.exp(lumps[..., m, 2])
     excess = 0.5 * (ra + rb) - d
     inside = excess > 0
     if not inside.any():  # lumps apart, as nearly always: nothing to push (every fit step comes here)
-        return np.zeros(len(j)), np.zeros((len(j), family.size))
-    rows = np.zeros((len(j), family.k, family.per_lump))
+        return np.zeros(lead + (len(j),)), np.zeros(lead + (len(j), family.size))
+    rows = np.zeros(lead + (len(j), family.k, family.per_lump))
     pair = np.arange(len(j))
-    for index, lump, sign in ((j, 0, 1.0), (m, 1, -1.0)):
-        rows[pair, index, 0] = -sign * dx / d
-        rows[pair, index, 1] = -sign * dy / d
-        rows[pair, index, 2] = 0.5 * (ra if lump == 0 else rb)
-    rows = np.hstack([np.zeros((len(j), 3)), rows.reshape(len(j), -1)]) * inside[:, None]
-    return np.where(inside, excess, 0.0) / OVERLAP_MM, rows / OVERLAP_MM
+    for index, radius, sign in ((j, ra, 1.0), (m, rb, -1.0)):
+        rows[..., pair, index, 0] = -sign * dx / d
+        rows[..., pair, index, 1] = -sign * dy / d
+        rows[..., pair, index, 2] = 0.5 * radius
+    rows = np.concatenate([np.zeros(lead + (len(j), BACKGROUND)), rows.reshape(lead + (len(j), -1))], axis=-1)
+    return np.where(inside, excess, 0.0) / OVERLAP_MM, rows * inside[..., None] / OVERLAP_MM
 
 
 @functools.lru_cache(maxsize=None)
@@ -120,12 +123,13 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
     readings say whatever the details, and the second holds far more posterior mass."""
     lo, hi = priors.bounds(family)
     noise = max(noise_sd or noise_floor, noise_floor)
-    best, lowest, calls, modes = None, np.inf, 0, []
-    for start in starts:
-        theta, cost, used = _solve(family, obs, priors, _inside(start, lo, hi), lo, hi, noise,
-                                   (GIVE_UP_AFTER, lowest + HOPELESS), max_iter)
-        lowest, calls = min(lowest, cost), calls + used
-        if cost > lowest + HOPELESS:
+    thetas, costs, used = levenberg_marquardt_many(
+        lambda many: stacked(family, many, obs, priors, noise), np.array([_inside(s, lo, hi) for s in starts]),
+        lo, hi, COST_TOLERANCE, max_iter, (GIVE_UP_AFTER, HOPELESS))
+    calls = int(used.sum())
+    best, modes = None, []
+    for theta, cost, lowest in zip(thetas, costs, np.minimum.accumulate(np.where(np.isfinite(costs), costs, np.inf))):
+        if not cost <= lowest + HOPELESS:  # far below a start before it (or undefined): not a mode worth weighing
             continue
         mode = _evidence(family, theta, obs, priors, noise, noise_floor)
         modes.append(mode)
@@ -162,16 +166,18 @@ def _inside(theta: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
 
 def stacked(family, theta, obs, priors, noise):
-    """Residuals whose ½|r|² is −log posterior up to a constant (readings, then priors), and their Jacobian."""
-    f, jac = shapes.evaluate(family, theta, obs.xy)
+    """Residuals whose ½|r|² is −log posterior up to a constant (readings, then priors), and their Jacobian;
+    for S parameter vectors (theta S × size) at once, S of each."""
+    f, jac = shapes.evaluate_many(family, np.atleast_2d(theta), obs.xy)
     r, jr = residuals(f, jac, obs.y, obs.sd, obs.kind, noise)
-    pr, pj = prior_residuals(family, theta, priors)
-    return np.concatenate([r, pr]), np.vstack([jr, pj])
+    pr, pj = prior_residuals(family, np.atleast_2d(theta), priors)
+    r, jac = np.concatenate([r, pr], axis=-1), np.concatenate([jr, pj], axis=-2)
+    return (r, jac) if theta.ndim == 2 else (r[0], jac[0])
 
 
-def _solve(family, obs, priors, theta0, lo, hi, noise, give_up=None, max_iter: int = 60):
+def _solve(family, obs, priors, theta0, lo, hi, noise, max_iter: int = 60):
     return levenberg_marquardt(lambda theta: stacked(family, theta, obs, priors, noise), theta0, lo, hi,
-                               COST_TOLERANCE, max_iter=max_iter, give_up=give_up)
+                               COST_TOLERANCE, max_iter=max_iter)
 
 
 def _log_posterior(family, theta, obs, priors, noise) -> float:

@@ -21,18 +21,20 @@ LOG_2PI = math.log(2.0 * math.pi)
 
 def residuals(f: np.ndarray, jac: np.ndarray | None, y: np.ndarray, sd: np.ndarray, kind: np.ndarray,
               noise_sd: float) -> tuple[np.ndarray, np.ndarray | None]:
-    """Residuals (½Σr² = −log L up to the normalising terms) and their Jacobian w.r.t. the parameters."""
+    """Residuals (½Σr² = −log L up to the normalising terms) and their Jacobian w.r.t. the parameters;
+    f (n) and jac (n × d), or S of each (S × n, S × n × d) from as many parameter vectors."""
     total = np.sqrt(sd * sd + noise_sd * noise_sd)
     r = (y - f) / total
     d_r_df = -1.0 / total
     censored = kind != EXACT
     if censored.any():
         sign = np.where(kind[censored] == AT_LEAST, 1.0, -1.0)
-        z = -sign * r[censored]  # AT_LEAST: (f − B)/σ; AT_MOST: (B − f)/σ
+        z = -sign * r[..., censored]  # AT_LEAST: (f − B)/σ; AT_MOST: (B − f)/σ
         rc, drc_dz = _censored_residual(z)
-        r[censored] = rc
-        d_r_df[censored] = drc_dz * sign / total[censored]
-    return r, (None if jac is None else d_r_df[:, None] * jac)
+        r[..., censored] = rc
+        d_r_df = np.broadcast_to(d_r_df, r.shape).copy()
+        d_r_df[..., censored] = drc_dz * sign / total[censored]
+    return r, (None if jac is None else d_r_df[..., None] * jac)
 
 
 def _censored_residual(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

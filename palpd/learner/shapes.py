@@ -61,7 +61,8 @@ class Family:
 
 
 def background(theta: np.ndarray, xy: np.ndarray, scale_mm: float) -> np.ndarray:
-    return theta[0] + (theta[1] * xy[:, 0] + theta[2] * xy[:, 1]) / scale_mm
+    """The background's log stiffness at xy (n × 2): n values, or S × n for S parameter vectors (S × size)."""
+    return theta[..., 0:1] + (theta[..., 1:2] * xy[:, 0] + theta[..., 2:3] * xy[:, 1]) / scale_mm
 
 
 def log_rho2(params: np.ndarray, xy: np.ndarray, ellipse: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -133,26 +134,26 @@ def _heights(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, jacobian: bool):
 
 
 def _log_h(log_u: np.ndarray, tail: np.ndarray, derivatives: bool = True):
-    """t = log h for u = e^log_u (n × k), with dt/dlog u and dt/dλ (None, None when not asked for);
-    the Hill limit (λ = 0) by its series."""
-    t = np.empty_like(log_u)
-    dt_dlog_u, dt_dtail = (np.empty_like(log_u), np.empty_like(log_u)) if derivatives else (None, None)
-    for j, lam in enumerate(tail):  # one branch per lump, never both on every point
-        lu = log_u[:, j]
-        u = np.exp(lu)
-        if lam < 1e-4:
-            t[:, j] = lu + lam * (u - 1.0) / 2.0
-            if derivatives:
-                dt_dlog_u[:, j] = 1.0 + lam * u / 2.0
-                dt_dtail[:, j] = (u - 1.0) / 2.0
-            continue
-        x = np.maximum(lam * u, 1e-300)
-        one_minus = -np.expm1(-x)  # 1 − e^{−x}
-        t[:, j] = np.where(x > 1e-8, x + np.log(np.maximum(one_minus, 1e-300)), np.log(x)) - math.log(math.expm1(lam))
+    """t = log h for u = e^log_u (n × K, one column per lump), with dt/dlog u and dt/dλ (None, None when
+    not asked for); the Hill limit (λ = 0) by its series. Columns take one branch or the other, computed
+    for all columns at once (lumps from many starts are evaluated together: a loop over them would cost
+    a dozen numpy calls each)."""
+    u = np.exp(log_u)
+    hill = tail < 1e-4
+    if hill.all():
+        return log_u + tail * (u - 1.0) / 2.0, *((1.0 + tail * u / 2.0, (u - 1.0) / 2.0) if derivatives else (None, None))
+    lam = np.where(hill, 1.0, tail)  # the Hill columns' values come from the series below
+    x = np.maximum(lam * u, 1e-300)
+    one_minus = np.maximum(-np.expm1(-x), 1e-300)  # 1 − e^{−x}
+    t = np.where(x > 1e-8, x + np.log(one_minus), np.log(x)) - np.log(np.expm1(lam))
+    if derivatives:
+        dt_dlog_u, dt_dtail = x / one_minus, u / one_minus + 1.0 / np.expm1(-lam)
+    if hill.any():
+        t = np.where(hill, log_u + tail * (u - 1.0) / 2.0, t)
         if derivatives:
-            dt_dlog_u[:, j] = x / np.maximum(one_minus, 1e-300)
-            dt_dtail[:, j] = u / np.maximum(one_minus, 1e-300) + 1.0 / math.expm1(-lam)
-    return t, dt_dlog_u, dt_dtail
+            dt_dlog_u = np.where(hill, 1.0 + tail * u / 2.0, dt_dlog_u)
+            dt_dtail = np.where(hill, (u - 1.0) / 2.0, dt_dtail)
+    return (t, dt_dlog_u, dt_dtail) if derivatives else (t, None, None)
 
 
 def rho_at(params: np.ndarray, t: float) -> float:
@@ -173,12 +174,6 @@ def make_lump(center, radius_mm: float, sharpness: float, contrast: float, stret
                      math.log(sharpness), math.log(contrast)])
 
 
-def lump_height(params: np.ndarray, xy: np.ndarray, ellipse: bool) -> tuple[np.ndarray, np.ndarray]:
-    """a·p(x) for one lump and its derivatives (n × per-lump params)."""
-    h, jac = _heights(np.asarray(params, dtype=float)[None, :], xy, ellipse, True)
-    return h[:, 0], jac[:, 0, :]
-
-
 def lumps_of(family: Family, theta: np.ndarray) -> np.ndarray:
     """The lumps' parameters as a (k × per-lump) array."""
     return theta[BACKGROUND_PARAMS:].reshape(family.k, family.per_lump)
@@ -186,20 +181,38 @@ def lumps_of(family: Family, theta: np.ndarray) -> np.ndarray:
 
 def evaluate(family: Family, theta: np.ndarray, xy: np.ndarray, jacobian: bool = True):
     """Model log stiffness at xy (n × 2), and (if asked) its Jacobian (n × family.size)."""
-    base = background(theta, xy, family.scale_mm)
+    f, jac = evaluate_many(family, theta[None, :], xy, jacobian)
+    return f[0], (None if jac is None else jac[0])
+
+
+def evaluate_many(family: Family, thetas: np.ndarray, xy: np.ndarray, jacobian: bool = True):
+    """`evaluate` for S parameter vectors at once (S × family.size): S × n values and S × n × size
+    Jacobians. Fits from several starts step together (solver.py), one pass of numpy calls for all:
+    on a few dozen readings a call's overhead, not its arithmetic, is the cost."""
+    count, n = len(thetas), len(xy)
+    base = background(thetas, xy, family.scale_mm)
     if family.k == 0:
-        return base, (_background_jac(xy, family.scale_mm) if jacobian else None)
-    heights, jacs = _heights(lumps_of(family, theta), xy, family.kind == "ellipses", jacobian)
-    top = np.argmax(heights, axis=1)
-    rows = np.arange(len(xy))
-    m = heights[rows, top]
-    f = base + np.log1p(m)
+        return base, (np.repeat(_background_jac(xy, family.scale_mm)[None], count, axis=0) if jacobian else None)
+    lumps = thetas[:, BACKGROUND_PARAMS:].reshape(count * family.k, family.per_lump)
+    heights, jacs = _heights(lumps, xy, family.kind == "ellipses", jacobian)
+    heights = heights.reshape(n, count, family.k)
+    if family.k == 1:  # one lump, felt everywhere (the common case, without the search for the top one)
+        top, m = None, heights[:, :, 0]
+    else:
+        top = np.argmax(heights, axis=2)  # n × S: the lump felt at each point (the stiffest)
+        m = np.take_along_axis(heights, top[:, :, None], axis=2)[:, :, 0]
+    f = base + np.log1p(m.T)
     if not jacobian:
         return f, None
-    out = np.zeros((len(xy), family.size))  # the background's columns, then each lump's (only the top one's set)
-    out[:, :BACKGROUND_PARAMS] = _background_jac(xy, family.scale_mm)
-    per_lump = out[:, BACKGROUND_PARAMS:].reshape(len(xy), family.k, family.per_lump)  # a view: splits one axis
-    per_lump[rows, top] = jacs[rows, top] / (1.0 + m[:, None])
+    out = np.zeros((count, n, family.size))  # the background's columns, then each lump's (only the top one's set)
+    out[:, :, :BACKGROUND_PARAMS] = _background_jac(xy, family.scale_mm)
+    jacs = jacs.reshape(n, count, family.k, family.per_lump) / (1.0 + m[:, :, None, None])
+    if top is None:
+        out[:, :, BACKGROUND_PARAMS:] = jacs[:, :, 0].transpose(1, 0, 2)
+        return f, out
+    per_lump = out[:, :, BACKGROUND_PARAMS:].reshape(count, n, family.k, family.per_lump)  # a view: splits one axis
+    rows, starts = np.arange(n)[:, None], np.arange(count)[None, :]
+    per_lump[starts, rows, top] = jacs[rows, starts, top]
     return f, out
 
 
