@@ -257,6 +257,38 @@ def test_rivals_that_predict_alike_are_told_apart_around_the_lump_not_at_the_far
     assert math.dist(probe, felt) <= 12.0, probe
 
 
+@hsettings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.001, 1.0), st.floats(-5.0, 5.0), st.floats(1e-8, 1.0)), min_size=2, max_size=4),
+       st.floats(1e-8, 1.0))
+def test_a_reading_tells_the_hypotheses_apart_by_at_most_the_entropy_of_their_weights(rivals, noise_var):
+    """The information a reading carries about which hypothesis is right is between 0 (they predict alike)
+    and the entropy of their weights (it tells them apart for sure), however far apart the predictions."""
+    from palpd.learner.acquisition import disagreement
+
+    predictions = [(w, np.array([m, 0.0]), np.array([v, v])) for w, m, v in rivals]
+    for i, (w, m, v) in enumerate(rivals):  # the second cell: every hypothesis predicts the first one's
+        predictions[i][1][1], predictions[i][2][1] = rivals[0][1], rivals[0][2]
+    weights = np.array([w for w, _, _ in rivals]) / sum(w for w, _, _ in rivals)
+    score = disagreement(predictions, noise_var)
+    assert -1e-9 <= score[0] <= float(-weights @ np.log(weights)) + 1e-9
+    assert abs(score[1]) <= 1e-9
+
+
+def test_a_far_off_rival_of_little_weight_does_not_outbid_the_close_call_between_the_leading_two():
+    """Where a 5 % rival predicts 50 sd off (a tilted background, in a tissue corner), a reading can tell
+    little more than whether that rival is right; where the leading two (60 % and 35 %) differ by 3 sd it
+    says which of them is. Scored by the moment-matched spread, the corner won 2.05 to 0.35 nats and drew
+    three probes in a row there (four-lumps, seed 0)."""
+    from palpd.learner.acquisition import disagreement
+
+    sd = 0.01
+    corner, lump = 0, 1
+    predictions = [(0.6, np.array([0.0, 0.0]), np.full(2, sd**2)), (0.35, np.array([0.0, 3 * sd]), np.full(2, sd**2)),
+                   (0.05, np.array([50 * sd, 0.0]), np.full(2, sd**2))]
+    score = disagreement(predictions, sd**2)
+    assert score[lump] > score[corner]
+
+
 def test_asking_for_the_estimate_between_readings_changes_nothing_the_learner_decides():
     """The daemon publishes the estimate after every palpation; a CLI scan asks only at the end. Both must
     take the same course: reading the estimate (which checks the chosen fit's covariance, posterior.py)
