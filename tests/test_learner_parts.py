@@ -289,6 +289,21 @@ def test_a_far_off_rival_of_little_weight_does_not_outbid_the_close_call_between
     assert score[lump] > score[corner]
 
 
+def test_where_the_chosen_fit_misses_what_the_free_form_map_shows_the_larger_miss_comes_first():
+    """The misfit between the chosen fit and the free-form map ranks spots by how far apart they stand:
+    as information about which of the two is right, an 8 sd and a 16 sd miss both tie at log 2, and the
+    probes went to the nearest such spot, six in a row a few mm apart (touching-lumps, seed 1)."""
+    from palpd.learner.acquisition import disagreement, misfit
+
+    sd = 0.01
+    fit = (np.zeros(3), np.full(3, sd**2))
+    free_form = (np.array([0.0, 8 * sd, 16 * sd]), np.full(3, sd**2))
+    score = misfit(fit, free_form, sd**2)
+    assert score[0] == 0.0 and score[2] > score[1] + 0.5
+    as_choice = disagreement([(0.5, *fit), (0.5, *free_form)], sd**2)
+    assert as_choice[2] - as_choice[1] < 0.1  # why not that: both near its ceiling, log 2
+
+
 def test_asking_for_the_estimate_between_readings_changes_nothing_the_learner_decides():
     """The daemon publishes the estimate after every palpation; a CLI scan asks only at the end. Both must
     take the same course: reading the estimate (which checks the chosen fit's covariance, posterior.py)

@@ -59,6 +59,15 @@ def disagreement(predictions: list[tuple[float, np.ndarray, np.ndarray]], noise_
     return -weights @ np.log(np.einsum("j,ijc->ic", weights, np.exp(-distance)))
 
 
+def misfit(first: tuple[np.ndarray, np.ndarray], second: tuple[np.ndarray, np.ndarray], noise_var: float) -> np.ndarray:
+    """How far two predictions (mean, var) stand apart at each spot: ½·log(1 + ¼Δ²/(noise + mean var)).
+    Where the chosen fit misses what the free-form map shows, the spots that miss most come first:
+    scored by `disagreement` they tie at log 2 wherever a reading would tell the two apart, and the probes
+    went to the nearest of them, six in a row a few mm apart (touching-lumps, seed 1)."""
+    (mean_a, var_a), (mean_b, var_b) = first, second
+    return 0.5 * np.log1p(0.25 * (mean_a - mean_b) ** 2 / (noise_var + 0.5 * (var_a + var_b)))
+
+
 def straddle(mean: np.ndarray, std: np.ndarray, tau: np.ndarray, confidence: float) -> np.ndarray:
     return NormalDist().inv_cdf(confidence) * std - np.abs(mean - tau)
 

@@ -299,8 +299,8 @@ class Decision:
         # map itself has nothing more flexible to be compared with: scored against itself every cell was 0 and
         # the probes went to the tissue's corners, its boundary left as unsure as it was.)
         if fit is not None and not self._adequate():
-            return acquisition.disagreement([(0.5, *self._moments(fit, cells)),
-                                             (0.5, self.gp.mean[cells], self.gp.var[cells])], self._noise_var())
+            return acquisition.misfit(self._moments(fit, cells), (self.gp.mean[cells], self.gp.var[cells]),
+                                      self._noise_var())
         unfelt = self._unfelt()
         if unfelt is not None:  # over the lump a preferred hypothesis needs and no reading has felt
             return 1.0 / (1.0 + np.hypot(xy[:, 0] - unfelt[0], xy[:, 1] - unfelt[1]))
