@@ -146,3 +146,32 @@ def test_a_radius_the_readings_leave_on_a_ridge_is_reported_as_unsure_as_the_rid
     for other in fit.alternatives:
         assert abs(math.exp(other[5]) - lump.radius_mm) <= 1.5 * lump.radius_sd_mm
     assert abs(lump.radius_mm - radius) <= 2.0 * lump.radius_sd_mm, (lump.radius_mm, lump.radius_sd_mm)
+
+
+def test_a_radius_on_a_ridge_no_start_found_is_reported_as_unsure_as_its_profile_is_flat():
+    """Nineteen readings recorded from a simulated active scan of a 200 N/mm lump of 8 mm in 0.5 N/mm tissue
+    (palpation.too_stiff = "bound"): four bounds ("at least 41-55 N/mm") inside, exact readings on its far
+    tails outside, none across its edge. Radius, contrast and edge trade along a ridge on which 3.3 and 8 mm
+    fit alike, but the fit's starts all ended near 3.3 mm, and the straight-line check of its covariance
+    said 3.30 ± 0.23 mm: the scan stopped there, 4.5 mm off. Traced along the radius's profile, the ridge
+    is in the reported sd, and the scan reads on."""
+    from palpd.config import Settings
+    from palpd.learner.planner import make_learner
+
+    recorded = [
+        ((-7.501, -8.0), 0.50286, 0.000404), ((-22.501, -23.999), 0.4999, 0.0004), ((7.499, -24.0), 0.49967, 0.000407),
+        ((22.501, -8.0), 0.50076, 0.000405), ((7.5, 8.0), 0.5456, 0.000398), ((-7.5, 24.0), 0.50257, 0.000384),
+        ((-22.499, 8.0), 0.50163, 0.000414), ((22.5, 24.0), 0.50005, 0.00039), ((9.999, 10.0), 0.50221, 0.000395),
+        ((5.999, 5.0), 0.68743, 0.000439), ((5.0, 12.0), 0.95049, 0.000492), ((-3.001, 11.997), None, 40.68261),
+        ((-2.999, 20.0), 0.68606, 0.000425), ((-9.0, 20.0), 0.68582, 0.00045), ((22.501, -24.0), 0.50035, 0.0004),
+        ((-22.5, 24.0), 0.50021, 0.000415), ((-6.0, 7.997), None, 50.54457), ((-4.001, 4.995), None, 55.21839),
+        ((-8.0, 10.996), None, 49.00562)]
+    learner = make_learner(Settings(), (60.0, 60.0), 0)
+    for xy, k, sd_or_bound in recorded:
+        if k is None:
+            learner.observe(xy, None, outcome="too_stiff", bound_n_per_mm=sd_or_bound)
+        else:
+            learner.observe(xy, k, sd_or_bound)
+    (lump,) = learner.lumps()
+    assert abs(lump.radius_mm - 8.0) <= 3.0 * lump.radius_sd_mm, (lump.radius_mm, lump.radius_sd_mm)
+    assert not learner.decided() and learner.next_probe() is not None

@@ -125,7 +125,9 @@ class Hypotheses:
         fit = self.fits.get(name)
         if fit is not None and fit.family.k and not fit.checked:
             self.raw[name] = fit
-            cov = posterior.checked_cov(fit, obs, self.priors(obs)) + _ridge_spread(fit)
+            priors = self.priors(obs)
+            cov = posterior.checked_cov(fit, obs, priors) + _ridge_spread(fit)
+            cov = cov + posterior.profiled_spread(fit, obs, priors, cov)
             fit = self.fits[name] = replace(fit, cov=cov, checked=True)
         return fit
 

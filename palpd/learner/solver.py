@@ -23,9 +23,9 @@ def levenberg_marquardt(fun, x0: np.ndarray, lo: np.ndarray, hi: np.ndarray, tol
 
 def levenberg_marquardt_many(fun, starts: np.ndarray, lo: np.ndarray, hi: np.ndarray, tolerance: float,
                              max_iter: int = 60, give_up: tuple[int, float] | None = None):
-    """Minimise ½|r(x)|² within the box [lo, hi] from each row of `starts` (S × d); fun(xs) returns the
-    residuals and Jacobians of the rows of xs (s × m, s × m × d). A start is done when an accepted step
-    gains less than `tolerance` (the cost's units) or barely moves. `give_up` (iterations, margin): a
+    """Minimise ½|r(x)|² within the box [lo, hi] (d, or S × d: one per start) from each row of `starts`
+    (S × d); fun(xs) returns the residuals and Jacobians of the rows of xs (s × m, s × m × d). A start is
+    done when an accepted step gains less than `tolerance` (the cost's units) or barely moves. `give_up` (iterations, margin): a
     start whose cost after that many iterations is more than `margin` above the final cost of a start
     before it is dropped, its cost reported as it was then: the starts are in order of preference, and
     they end as if run one after another (only faster). Returns the points (S × d), their costs and how
@@ -57,7 +57,7 @@ def levenberg_marquardt_many(fun, starts: np.ndarray, lo: np.ndarray, hi: np.nda
         live, step = live[solved], step[solved]
         if live.size == 0:
             continue
-        trial = np.clip(x[live] + step, lo, hi)
+        trial = np.clip(x[live] + step, _of(lo, live), _of(hi, live))
         r_new, jac_new = fun(trial)
         calls[live] += 1
         new_cost = 0.5 * np.einsum("sm,sm->s", r_new, r_new)
@@ -98,6 +98,11 @@ class _Hopeless:
                 active[i] = False
                 cost[i] = self.cost_then[i]
             self.judged += 1
+
+
+def _of(box: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """A box's bounds for those starts: one box for all (d), or one per start (S × d)."""
+    return box[rows] if box.ndim == 2 else box
 
 
 def _solve_each(matrices: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
