@@ -2,6 +2,8 @@
 
     .venv/bin/python scripts/active_scenes.py [--seed N | --seeds 0,1,2] [--raster-too] [SCENE ...]
     .venv/bin/python scripts/active_scenes.py --random N [--random-seed S] [--raster-too]
+    add --config FILE (TOML) to any of them for other settings, e.g. [learner] coverage_mm = 11
+
 
 Each row is `palpd scan --scene SCENE --strategy active` with default settings (simulated time, the
 real control and fit code, in this process): palpations, robot time, the verdict and the model the
@@ -29,7 +31,8 @@ pin_blas_to_one_thread()
 from drivers.sim.scene import Scene, load_scene  # noqa: E402
 from palpd import metrics  # noqa: E402
 from palpd.bench import open_simulated_bench  # noqa: E402
-from palpd.config import Settings  # noqa: E402
+from palpd.config import Settings, load_settings  # noqa: E402
+from palpd.errors import ConfigError  # noqa: E402
 from palpd.scan import plan, run_scan  # noqa: E402
 
 HEADER = ("| scene | palpations | robot time | verdict | model (weight) | found | false | centre error | radius error "
@@ -37,10 +40,11 @@ HEADER = ("| scene | palpations | robot time | verdict | model (weight) | found 
 SUMMARY_HEADER = ("\n| scene | count right | palpations (median) | (most) | undetermined | worst centre error (mm) "
                   "| worst radius error (mm) | worst IoU |\n|---|---|---|---|---|---|---|---|")
 SCENES = Path(__file__).resolve().parent.parent / "config" / "scenes"
+BASE = [Settings()]  # the settings every scan starts from (--config replaces them)
 
 
 def scan(scene, strategy: str, budget: int, seed: int) -> tuple[dict, dict]:
-    settings = Settings().updated(scan={"strategy": strategy, "seed": seed})
+    settings = BASE[0].updated(scan={"strategy": strategy, "seed": seed})
     planner = plan(strategy, scene.tissue.size_mm, budget, seed, settings)
     report = run_scan(open_simulated_bench(settings, scene, seed=seed), settings, planner)
     return report, metrics.compare(metrics.scene_truth(scene, settings.scan.min_contrast), report["lumps"])
@@ -77,7 +81,14 @@ def main() -> int:
     parser.add_argument("--raster-too", action="store_true")
     parser.add_argument("--random", type=int, default=0, metavar="N", help="N random scenes instead of the shipped ones")
     parser.add_argument("--random-seed", type=int, default=0)
+    parser.add_argument("--config", default=None, metavar="FILE", help="settings (TOML) instead of the defaults")
     args = parser.parse_args()
+    if args.config:
+        try:
+            BASE[0] = load_settings(args.config)
+        except ConfigError as exc:
+            print(f"active_scenes: {exc}", file=sys.stderr)
+            return 2
     if args.random:
         return tried_beyond(random_scenes(args.random, args.random_seed), args.raster_too)
     names = args.scenes or sorted(p.stem for p in SCENES.glob("*.toml"))
@@ -86,7 +97,7 @@ def main() -> int:
     print(HEADER)
     for name in names:
         scene = load_scene(SCENES / f"{name}.toml")
-        report, m = scan(scene, "active", Settings().learner.max_palpations, args.seed)
+        report, m = scan(scene, "active", BASE[0].learner.max_palpations, args.seed)
         print(row(name, report, m), flush=True)
         if args.raster_too:
             raster, rm = scan(scene, "raster", report["palpations"], args.seed)
@@ -99,7 +110,7 @@ def sweep(names: list[str], seeds: list[int]) -> int:
     rows = []
     for name in names:
         scene = load_scene(SCENES / f"{name}.toml")
-        runs = [scan(scene, "active", Settings().learner.max_palpations, seed) for seed in seeds]
+        runs = [scan(scene, "active", BASE[0].learner.max_palpations, seed) for seed in seeds]
         for seed, (report, m) in zip(seeds, runs):
             print(row(f"{name} (seed {seed})", report, m), flush=True)
         rows.append(summary(name, runs))
@@ -141,7 +152,7 @@ def tried_beyond(scenes: list[Scene], raster_too: bool) -> int:
                           for lump in scene.lump)
         name = (f"{scene.name}: {scene.tissue.size_mm[0]:.0f} mm, {k:.2f} N/mm, "
                 f"noise {scene.sensor.noise_n} N; {lumps}")
-        runs.append(scan(scene, "active", Settings().learner.max_palpations, 0))
+        runs.append(scan(scene, "active", BASE[0].learner.max_palpations, 0))
         print(row(name, *runs[-1]), flush=True)
         if raster_too:
             raster, rm = scan(scene, "raster", runs[-1][0]["palpations"], 0)
