@@ -11,15 +11,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from palpd.control.palpation import PalpationRecord
+from palpd.control.palpation import MIN_SLOPE_DEPTH_MM, PalpationRecord
 from palpd.stiffness import FitRejected, StiffnessResult
 from palpd.stiffness.palpation import fit_palpation
 
 DEPTH_RESOLUTION_MM = 0.05  # two encoder steps at the tip (~23 µm each)
-# A press stopped by the force limit within this depth of its contact point gives a bound, not a slope: over
-# four encoder steps the contact point's own error (~0.03 mm) and the controller's lag are most of the
-# depth, and a 100 N/mm lump fitted there read 20 ± 5 N/mm (0.086 mm deep); at 0.11 mm, 50 N/mm read 39 ± 15.
-MIN_SLOPE_DEPTH_MM = 0.1
 NO_FIT = ("too_few_samples", "no_range", "no_rise", "constant_force", "not_converged")
 
 
@@ -74,6 +70,9 @@ def judge(record: PalpationRecord, settings) -> Probe:
         # 0.030 from the last 1.8 mm of a 15 mm approach, the onset as plausible anywhere over 5 mm).
         return _too_soft_in_approach(record, f"a rise too faint to place: its onset as likely anywhere over "
                                              f"{record.onset_spread_mm:.1f} mm")
+    if record.rebounded:  # its trace is impacts, not a press: no slope in it (palpd.control.palpation)
+        return _too_stiff(record, f"the tip bounced off it at {record.max_force_n:.1f} N, "
+                                  f"{max(record.depth_mm, default=0.0):.3f} mm in")
     try:
         varying = settings.palpation.speed_profile == "varying"
         fit = fit_palpation(record, settings.stiffness, settings.servo.rate_hz, varying)

@@ -101,10 +101,10 @@ def palpate(bench: Bench, settings, xy_mm) -> Probe:
 
 def _stopped_early(probe: Probe) -> bool:
     """The force limit came before a reading to REPALPATE_REL_SE: a fit over few samples, or a bound for want
-    of samples. Not a press the limit stopped within MIN_SLOPE_DEPTH_MM: a gentler one stops as shallow (the
-    depth is the force over k, whatever the speed), and on 100 N/mm a slow press chatters past the cap."""
+    of samples. Not a press the limit stopped within MIN_SLOPE_DEPTH_MM, nor one that bounced off: a gentler one
+    stops as shallow (the depth is the force over k, whatever the speed), and bounces too (palpd.control.palpation)."""
     rec = probe.record
-    if rec.stop_reason != "force" or max(rec.depth_mm, default=0.0) < MIN_SLOPE_DEPTH_MM:
+    if rec.stop_reason != "force" or rec.rebounded or max(rec.depth_mm, default=0.0) < MIN_SLOPE_DEPTH_MM:
         return False
     return probe.outcome == "too_stiff" or (
         probe.fit is not None and probe.fit.stiffness_se_n_per_mm > REPALPATE_REL_SE * probe.fit.stiffness_n_per_mm)

@@ -87,6 +87,19 @@ def test_a_client_drives_a_scan_and_gets_the_same_estimate_by_request(daemon):
     assert "(9 re-segmented from raw samples)" in replayed.stdout, replayed.stdout  # not the journal's traces
 
 
+def test_replay_leaves_a_bound_the_scan_judged_a_bound():
+    """A press judged a bound from the whole of it (one that bounced off stiff tissue, or met the limit within
+    0.1 mm) stays a bound on replay, though a slope could be fitted to its trace."""
+    from palpd.config import Settings
+    from palpd.daemon.replay import reading
+
+    depth = [0.01 * i for i in range(31)]
+    trace = {"depth_mm": depth, "force_n": [12.0 * d for d in depth], "outcome": "too_stiff"}
+    assert reading(trace, Settings()) == (None, 0.0)
+    k, sd = reading(trace | {"outcome": "fit"}, Settings())
+    assert k == pytest.approx(12.0, rel=0.05) and sd > 0
+
+
 def test_sigterm_mid_scan_stops_safely_and_exits_0(daemon):
     daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
     subscriber = daemon.subscriber("stiffness")

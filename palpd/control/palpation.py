@@ -28,6 +28,26 @@ LOOKBACK_S = 2.5  # the approach kept for finding the contact point again: from 
 # speed_mm_s, SPEED_CYCLES times over the depth, so the same depths are pressed slowly and quickly.
 SPEED_SWING = 0.8
 SPEED_CYCLES = 3
+# A press stopped by the force limit within this depth of its contact point gives a bound, not a slope: over
+# four encoder steps the contact point's own error (~0.03 mm) and the controller's lag are most of the
+# depth, and a 100 N/mm lump fitted there read 20 ± 5 N/mm (0.086 mm deep); at 0.11 mm, 50 N/mm read 39 ± 15.
+MIN_SLOPE_DEPTH_MM = 0.1
+# On tissue that stiff the probe bounces: its few grams meet a spring of 100-200 N/mm, the contact lasts ~2 ms
+# and the controller, a period late, cannot damp it. In flight the setpoint's lead (all push: the tip does not
+# follow it) throws the tip down again, so each impact comes harder than the last (200 N/mm in 0.5 N/mm: 1.3,
+# 1.4, 2.6, 2.3, 2.9, 5.5 N sampled one impact to the next, then 6.2 N, past the 6 N cap), while between impacts
+# the 1 kHz samples read no force at all and the press went on. A press 4 times slower does it too once its push
+# has grown: the still tip's encoder flickers a step, the damping kicks, and the bouncing grows. So such a press
+# ends at the first rebound after an impact of REBOUND_STOP_FRACTION of max_force_n (its reading is a bound
+# either way, and a gentler press would bounce too), and any press the limit stops that shallow releases at once
+# (Palpation._release) instead of pushing on while its setpoint climbs back to the tip: a retract that began 1.7
+# mm below the tip went on bouncing, up to 7.2 N.
+REBOUND_STOP_FRACTION = 0.5
+# ...where the limit would come within this fraction of MIN_SLOPE_DEPTH_MM at the impact's stiffness. Live, the
+# contact point is the filtered force's, found late, so the depth seen falls short: 30 N/mm in 5 N/mm tissue
+# bounced off at 2.9 N 0.07 mm below it, 0.11 mm below the one the whole trace gives (a press that reads a
+# slope when repeated gently).
+REBOUND_DEPTH_FRACTION = 0.5
 
 
 @dataclass
@@ -56,6 +76,7 @@ class PalpationRecord:
     lowest_z_mm: float = math.inf  # the deepest the tip went (tissue frame: the nominal surface is z = 0)
     force_lead_s: float = 0.0  # how much newer the force samples were than the tip readings (aligned for the fit)
     onset_spread_mm: float = 0.0  # the span of contact points the trace fits as well as the one found (onset.refine)
+    rebounded: bool = False  # stopped as the tip bounced off tissue too stiff to press (palpation.REBOUND_*)
 
     def __post_init__(self) -> None:
         if self.xy_mm is None:
@@ -91,6 +112,9 @@ class Palpation:
         self.segmenter = palpation_segmenter(th.on_n, th.off_n, th.filter_s)
         self.record.contact_filter_s = th.filter_s
         self._segment: Segment | None = None
+        self._lowest_in_contact_mm = math.inf  # the tip's lowest and the highest force since contact
+        self._peak_in_contact_n = 0.0
+        self.jumped = False  # the setpoint jumped this tick (a release): the servo reads no velocity into it
         self.done = False
 
     def step(self, tick) -> Vec3:
@@ -133,15 +157,34 @@ class Palpation:
 
     def _indent(self, tick, dt) -> Vec3:
         depth = self._keep(tick)
+        if self._rebounded(tick):
+            self.record.rebounded = True
+            self._start_retract(tick, "force")
+            return self._setpoint()
         if depth >= self.s.depth_mm or tick.normal_force_n >= self.s.max_force_n:
             reason = "depth" if depth >= self.s.depth_mm else "force"
-            if self.s.hold_s > 0:
+            if self.s.hold_s > 0 and not (reason == "force" and self._shallow()):
                 self._phase, self._hold_until, self.record.stop_reason = "hold", tick.motion_t_s + self.s.hold_s, reason
             else:
                 self._start_retract(tick, reason)
             return self._setpoint()
         self._target_z -= self._indent_speed_mm_s() * dt
         return self._setpoint()
+
+    def _rebounded(self, tick) -> bool:
+        """The tip came back up off tissue it met hard: the force fell to the release threshold after an impact
+        of REBOUND_STOP_FRACTION of the force limit, at a stiffness that would meet the limit within
+        REBOUND_DEPTH_FRACTION of MIN_SLOPE_DEPTH_MM. (A soft press never does this: its setpoint goes on down
+        and its force up.)"""
+        force, peak = tick.normal_force_n, self._peak_in_contact_n
+        return (peak >= REBOUND_STOP_FRACTION * self.s.max_force_n and force <= self.record.contact_off_n
+                and tick.tip_mm[2] > self._lowest_in_contact_mm
+                and (self.record.contact_z_mm - self._lowest_in_contact_mm) * self.s.max_force_n
+                < REBOUND_DEPTH_FRACTION * MIN_SLOPE_DEPTH_MM * peak)
+
+    def _shallow(self) -> bool:
+        """The tip has gone no deeper than MIN_SLOPE_DEPTH_MM below the contact point: a press stopped here is a bound."""
+        return self.record.contact_z_mm - self._lowest_in_contact_mm < MIN_SLOPE_DEPTH_MM
 
     def _indent_speed_mm_s(self) -> float:
         """At one constant speed k·xⁿ and b·xⁿ·ẋ rise alike and a fit cannot tell them apart; a varying speed can."""
@@ -167,6 +210,8 @@ class Palpation:
 
     def _keep(self, tick) -> float:
         self.record.max_force_n = max(self.record.max_force_n, tick.normal_force_n)
+        self._lowest_in_contact_mm = min(self._lowest_in_contact_mm, tick.tip_mm[2])
+        self._peak_in_contact_n = max(self._peak_in_contact_n, tick.normal_force_n)
         return self.record.contact_z_mm - tick.tip_mm[2]
 
     def _approach_segment(self) -> Segment | None:
@@ -197,8 +242,17 @@ class Palpation:
     def _start_retract(self, tick, reason: str) -> None:
         self.record.stop_reason = reason
         self._phase = "retract"
+        if reason == "force" and self._shallow():
+            self._release()
         # From the setpoint, not the lagging tip, so the force releases smoothly.
         self._task = MoveTo(self._above_point, self.s.approach_speed_mm_s, self.s.accel_mm_s2, start=self._setpoint())
+
+    def _release(self) -> None:
+        """The setpoint up to the tip's lowest point at once: below it, the lead was all push on tissue too stiff
+        to give way (MIN_SLOPE_DEPTH_MM). A jump, so the servo reads no speed into it (a kick of kd times 0.35 mm
+        per tick threw the tip up and back down onto the tissue)."""
+        if self._lowest_in_contact_mm > self._target_z:
+            self._target_z, self.jumped = self._lowest_in_contact_mm, True
 
     def _setpoint(self) -> Vec3:
         return (self._above_point[0], self._above_point[1], self._target_z)

@@ -147,7 +147,10 @@ class ServoLoop(Sensing, Stopping):
                 fault = self._check(tick, give_up)
                 if fault is not None:
                     self._stop_for(fault, tick)
-                self._command(tick, task.step(tick))
+                target = task.step(tick)
+                if getattr(task, "jumped", False):  # a deliberate jump of the setpoint: no speed in it
+                    task.jumped, self._task_target = False, None
+                self._command(tick, target)
                 self._end_tick(tick, started)
         except DriverError as exc:
             self._link_lost(exc)

@@ -22,6 +22,7 @@ from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.mcap import read_messages
 from palpd.daemon.session import JOURNAL, META, read_journal
 from palpd.errors import PalpdError
+from palpd.learner.observations import CENSORED
 from palpd.stiffness import FitRejected
 from palpd.stiffness.palpation import fit_palpation
 
@@ -93,7 +94,7 @@ def replay(session_dir: Path, settings) -> dict:
     estimator = make_estimator(settings, scan, scan["size_mm"])
     worst_k = 0.0
     for trace in traces:
-        k, sd = journaled(trace) if trace.get("palpation") == "sliding" else refit(trace, settings)
+        k, sd = reading(trace, settings)
         if trace.get("stiffness_n_per_mm") is not None and k is not None:
             worst_k = max(worst_k, abs(k - trace["stiffness_n_per_mm"]))
         outcome = "fit" if k is not None else trace.get("outcome")  # a censored reading stays a bound
@@ -112,6 +113,16 @@ def session_scan(session_dir: Path, settings) -> dict:
     defaults = {"strategy": "raster", "max_palpations": None, "seed": 0, "center_mm": (0.0, 0.0), "size_mm": None,
                 "depth_mm": None, "speed_mm_s": None} | OLDER_SESSIONS
     return resolved_scan(defaults | scan, settings.tissue.size_mm, settings)
+
+
+def reading(trace: dict, settings) -> tuple[float | None, float]:
+    """(k, sd) as the scan read it: a sliding cycle as journaled, a press fitted again, and a bound left a
+    bound (judged from the whole press, e.g. one that bounced off: palpd.probe.judge; no slope in its trace)."""
+    if trace.get("palpation") == "sliding":
+        return journaled(trace)
+    if trace.get("outcome") in CENSORED:
+        return None, 0.0
+    return refit(trace, settings)
 
 
 def journaled(trace: dict) -> tuple[float | None, float]:
