@@ -183,6 +183,16 @@ def test_a_press_the_limit_stops_short_on_hardening_tissue_is_read_at_the_refere
     assert probe.stiffness_n_per_mm == pytest.approx(truth, abs=3.0 * probe.fit.stiffness_se_n_per_mm + 0.05 * truth)
 
 
+def test_a_press_set_shallower_than_the_reference_is_read_where_it_ends():
+    """palpation.depth_mm 1.5 under the 2 mm reference: every press stops by depth, and all are read at their
+    deepest sample, comparable with each other, not along a curve beyond what any of them pressed."""
+    scene = Scene(name="hardening", tissue={"stiffness_n_per_mm": 0.3, "exponent": 2.0}, sensor={"tilt": True})
+    shallow = SETTINGS.updated(palpation={"depth_mm": 1.5})
+    probe = palpate(tared_bench(scene), shallow, (0.0, 0.0))
+    assert probe.record.stop_reason == "depth" and probe.outcome == "fit", probe.rejected
+    assert probe.fit.chosen.reference_depth_mm == pytest.approx(max(probe.record.depth_mm))
+
+
 def test_tissue_too_soft_to_outrun_a_drift_follower_still_fires_contact():
     """0.005 N/mm pressed at 10 mm/s rises 0.05 N/s: a zero that followed it during the approach lagged by less
     than the 0.03 N threshold, contact never fired, and the too_soft bound (k <= 0.0021) was below the truth."""

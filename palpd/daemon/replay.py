@@ -133,6 +133,7 @@ def journaled(trace: dict) -> tuple[float | None, float]:
 def refit(trace: dict, settings) -> tuple[float | None, float]:
     """The palpation's stiffness and its standard error, fitted as the scan fitted it."""
     record = SimpleNamespace(depth_mm=trace["depth_mm"], force_n=trace["force_n"],
+                             stop_reason=trace.get("stop_reason", "force"),
                              unload_depth_mm=trace.get("unload_depth_mm", []),
                              unload_force_n=trace.get("unload_force_n", []))
     try:

@@ -34,6 +34,11 @@ def fit_palpation(record, stiffness_settings, rate_hz: float, rate_varies: bool 
     s = stiffness_settings
     with_damping = MODELS[s.model].needs_rate if s.model != SELECT else rate_varies
     depth, force = list(record.depth_mm), list(record.force_n)
+    reference_mm = s.reference_depth_mm
+    if getattr(record, "stop_reason", "force") != "force" and depth:
+        # Only a press the force limit stopped short is read along its curve towards the reference (fit.REACH);
+        # one that went the whole configured depth, shallower than the reference, is read where it ends.
+        reference_mm = min(reference_mm, max(depth))
     rate = list(depth_rate_mm_s(record.depth_mm, rate_hz)) if with_damping else None  # only a damping model reads it
     if not with_damping:
         kept = before_the_stop(depth, force, rate_hz)
@@ -42,8 +47,7 @@ def fit_palpation(record, stiffness_settings, rate_hz: float, rate_varies: bool 
         depth += record.unload_depth_mm
         force += record.unload_force_n
         rate += list(depth_rate_mm_s(record.unload_depth_mm, rate_hz))
-    return fit_stiffness(depth, force, rate, model=s.model, criterion=s.criterion,
-                         reference_depth_mm=s.reference_depth_mm)
+    return fit_stiffness(depth, force, rate, model=s.model, criterion=s.criterion, reference_depth_mm=reference_mm)
 
 
 def before_the_stop(depth_mm, force_n, rate_hz: float) -> int:
