@@ -158,6 +158,7 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     probes: list[Probe] = []
     faults = []
     tared = None
+    lifted = 0  # sliding paths the force limit lifted off before their end: what lay past it was not read
     load_solvers()  # before the motors are on (see there)
     try:
         servo.start()  # homes the arm first, supervised: after a category-0 stop it may lie anywhere
@@ -170,7 +171,9 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
         servo.forces.tare(tare.samples)
         tared = tare_summary(servo.forces, p, settings.servo.rate_hz)
         while xy is not None:
-            for probe in palpations(bench, settings, xy):
+            read = palpations(bench, settings, xy)
+            lifted += p.mode == "sliding" and any(pr.record.stop_reason == "force" for pr in read)
+            for probe in read:
                 probes.append(probe)
                 planner.observe(probe)
                 if progress:
@@ -204,6 +207,8 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     }
     if failing:
         body["undetermined_reason"] = failing
+    if p.mode == "sliding":
+        body["paths_lifted_at_force_limit"] = lifted
     true_peak_n = servo.true_max_contact_force_n
     if true_peak_n is not None:  # in simulation: what the tissue really took, at every physics step
         body["truth"] = {"max_contact_force_n": round(true_peak_n, 4)}

@@ -1,6 +1,7 @@
 """Sliding palpation on the simulated bench: the stiffness read while sliding agrees with a discrete
 palpation at the same spot, the tissue drags the sliding tip (Coulomb friction), and a lateral-force stop
 lifts the probe off without sliding on."""
+import json
 import math
 
 import pytest
@@ -122,3 +123,15 @@ def test_a_planned_path_passes_through_the_spot_asked_for_and_stays_on_the_tissu
     assert span <= length + 1e-9
     assert abs((x1 - x0) * (spot[1] - y0) - (y1 - y0) * (spot[0] - x0)) <= 1e-6 * max(span, 1.0)  # on its line
     assert min(math.dist(spot, (x0, y0)), math.dist(spot, (x1, y1))) <= span + 1e-9  # between its ends
+
+
+def test_a_sliding_scan_says_when_its_paths_lifted_at_the_force_limit(run_cli, tmp_path):
+    """A slide lifts off at max_force_n and reads nothing past it (the stiff-tissue lump, 12 N/mm in 2 N/mm, is
+    too stiff to slide across at sliding_depth_mm ± modulation_mm): the report counts such paths and the CLI
+    says what it means, in one line, instead of leaving lumps placed at the lift-off points unremarked."""
+    report = tmp_path / "report.json"
+    result = run_cli("scan", "--scene", SCENES / "stiff-tissue.toml", "--strategy", "raster", "--max-palpations", "3",
+                     "--palpation", "sliding", "--quiet", "--report", report)
+    assert json.loads(report.read_text())["paths_lifted_at_force_limit"] == 1  # the middle row of three
+    warnings = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert len(warnings) == 1 and "lifted off before their end" in warnings[0] and "Traceback" not in result.stderr
