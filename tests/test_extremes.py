@@ -21,6 +21,7 @@ from palpd.control.onset import hinge
 from palpd.control.segment import Segmenter
 from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.scan import failure_reason, palpate
+from palpd.stiffness import fit
 from palpd.stiffness.palpation import depth_rate_mm_s
 from palpd.probe import Probe, judge
 from palpd.control.palpation import PalpationRecord
@@ -168,17 +169,17 @@ def test_tissue_too_stiff_to_press_is_a_bound_and_never_pushes_past_the_cap(log_
     assert bench.world.reset_peak() < SETTINGS.safety.force_cap_n  # the true peak, between samples too
 
 
-@pytest.mark.parametrize("k, reference_mm", [(1.5, 2.0), (3.0, None)])
+@pytest.mark.parametrize("k, reference_mm", [(1.5, 2.0), (3.0, 2.0), (12.0, None)])
 def test_a_press_the_limit_stops_short_on_hardening_tissue_is_read_at_the_reference_along_its_curve(k, reference_mm):
-    """Tissue of exponent 2 stiff enough that 4 N comes at 1.63 mm (k = 1.5) or 1.15 mm (k = 3) of the 2 mm
-    reference: read along the press's own curve at 2 mm, or at 1.5 times the deepest sample, never beyond. Read
-    at the deepest sample, the first came out 0.82 times the truth (a lump's radius then 0.6 mm large)."""
+    """Tissue of exponent 2 stiff enough that 4 N comes at 1.63, 1.15 or 0.58 mm of the 2 mm reference: read
+    along the press's own curve at 2 mm, or at twice the deepest sample, never beyond. Read at the deepest
+    sample, the first came out 0.82 times the truth (a lump's radius then 0.6 mm large)."""
     scene = Scene(name="hardening", tissue={"stiffness_n_per_mm": k, "exponent": 2.0}, sensor={"tilt": True})
     probe = palpate(tared_bench(scene), SETTINGS, (0.0, 0.0))
     assert probe.record.stop_reason == "force" and probe.outcome == "fit", probe.rejected
     deepest = max(probe.record.depth_mm)
     read_at = probe.fit.chosen.reference_depth_mm
-    assert read_at == pytest.approx(reference_mm or 1.5 * deepest) and read_at > deepest
+    assert read_at == pytest.approx(reference_mm or fit.REACH * deepest) and read_at > deepest
     truth = felt_n_per_mm(k, 2.0, 0.0, read_at - probe.record.contact_z_mm)  # the true surface is at z = 0
     assert probe.stiffness_n_per_mm == pytest.approx(truth, abs=3.0 * probe.fit.stiffness_se_n_per_mm + 0.05 * truth)
 
