@@ -134,6 +134,7 @@ class ServoLoop(Sensing, Stopping):
         give_up = self.clock.now() + timeout_s
         widen = getattr(task, "from_anywhere", False)
         wind_down = getattr(task, "wind_down", None)
+        declares_jumps = hasattr(task, "jumped")  # a palpation's release (control.palpation): no speed in it
         try:
             while not task.done:
                 started = time.perf_counter()
@@ -148,7 +149,7 @@ class ServoLoop(Sensing, Stopping):
                 if fault is not None:
                     self._stop_for(fault, tick)
                 target = task.step(tick)
-                if getattr(task, "jumped", False):  # a deliberate jump of the setpoint: no speed in it
+                if declares_jumps and task.jumped:
                     task.jumped, self._task_target = False, None
                 self._command(tick, target)
                 self._end_tick(tick, started)

@@ -176,8 +176,9 @@ def profiled_spread(fit: Fit, obs, priors: Priors, cov: np.ndarray) -> np.ndarra
     straight along the covariance's directions (checked_cov) leave at once. A 200 N/mm lump of 8 mm in
     0.5 N/mm tissue was reported 3.53 ± 0.23 mm and the scan stopped. So each lump's log radius is held at
     steps either side of the mode and everything else refitted, each step from where the last one ended
-    (one batch of starts per step); where the profile has risen by ½ on each side, the refitted point less the mode is a spread along the ridge, added where
-    it reaches further than `cov` says (a profile as narrow as cov adds nothing)."""
+    (one batch of starts per step); where the profile has risen by ½ on each side, the refitted point less
+    the mode is a spread along the ridge, added where it reaches further than `cov` says (a profile as
+    narrow as cov adds nothing)."""
     spread = np.zeros_like(cov)
     if fit.family.k == 0 or bool(np.all(obs.kind == EXACT)):
         return spread
@@ -214,14 +215,14 @@ def profiled_spread(fit: Fit, obs, priors: Priors, cov: np.ndarray) -> np.ndarra
                 rises.append(float(rise.min()))
                 if rises[-1] > 0.5:
                     break
-            ends.append(_half_nat_end(np.array(points), np.array(rises), fit.theta, at))
+            ends.append(_half_nat_end(np.array(points), np.array(rises), fit.theta))
         reach = 0.5 * sum(float(d[at]) ** 2 for d in ends)
         if reach > cov[at, at]:
             spread += (1.0 - cov[at, at] / reach) * 0.5 * sum(np.outer(d, d) for d in ends)
     return spread
 
 
-def _half_nat_end(points: np.ndarray, rises: np.ndarray, mode: np.ndarray, at: int) -> np.ndarray:
+def _half_nat_end(points: np.ndarray, rises: np.ndarray, mode: np.ndarray) -> np.ndarray:
     """Along one side of a profile (points in order away from the mode), the point where the rise crosses ½
     (between the last point below and the first above, linearly; the mode is the first point below), less
     the mode; the farthest point if the profile never rises that far."""
