@@ -180,6 +180,8 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
                     progress(len(probes), max(planner.expected_total, len(probes)), probe)
             xy = planner.next_probe()
         servo.stop()  # parks at the rest pose, then the amplifiers go off
+        if servo.fault is not None:  # latched between tasks (the servo process's idle hold): the motors were off
+            raise ScanFault(servo.fault.message)
     except ScanFault:
         faults.append(servo.fault.as_dict())
     finally:

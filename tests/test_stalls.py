@@ -123,3 +123,47 @@ def test_deadlines_missed_before_the_enable_are_not_charged_to_the_homing():
     assert servo.overruns >= 300
     servo.start()  # homes, supervised
     assert servo.fault is None and servo.motors_on
+
+
+def test_a_late_idle_tick_between_tasks_holds_the_arm_where_the_path_left_it():
+    """On the wall clock the servo process holds the arm between tasks (while the learner picks the next point).
+    A late idle tick starts a rejoin; the hold must not add its offset again each tick (it walked the arm
+    8 mm at ~350 mm/s after a 20 ms stall: the speed fault a loaded CI run met before a scan's park)."""
+    bench = open_simulated_bench(Settings(), paper_scene())
+    servo, goal = bench.servo, (10.0, 0.0, 20.0)
+    servo.start()
+    servo.run(MoveTo(goal, 80.0, 2000.0))
+    fastest, farthest = 0.0, 0.0
+    for i in range(600):
+        if i == 5:
+            stall(bench.clock, 0.02)
+        servo.idle_tick()
+        fastest = max(fastest, math.dist(servo.last_tick.velocity_mm_s, (0.0, 0.0, 0.0)))
+        farthest = max(farthest, math.dist(bench.world.tip_mm(), goal))
+    assert servo.fault is None
+    assert farthest < 0.5 and fastest < 40.0  # the 20 ms of gravity hold's drift, taken back gently
+    assert math.dist(bench.world.tip_mm(), goal) < 0.05
+
+
+def test_a_fault_latched_between_palpations_is_in_the_scan_report():
+    """A fault the idle hold latches between tasks leaves the motors off: the scan's closing stop finds
+    nothing to park, and the report must still say the scan ended in it (it used to say: no fault)."""
+    from palpd.errors import ScanFault
+
+    settings = Settings()
+    bench = open_simulated_bench(settings, paper_scene())
+
+    class EStopBeforeTheEnd(FixedPlan):
+        def next_probe(self):
+            point = super().next_probe()
+            if point is None:
+                bench.servo.request_estop()
+                try:
+                    bench.servo.idle_tick()  # as the servo process ticks between requests
+                except ScanFault:
+                    pass  # latched; the process answers the next request with it
+            return point
+
+    report = run_scan(bench, settings, EStopBeforeTheEnd([(0.0, 0.0)]))
+    assert report["palpations"] == 1
+    assert [fault["code"] for fault in report["faults"]] == ["estop"]

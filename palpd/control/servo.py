@@ -68,7 +68,11 @@ class ServoLoop(Sensing, Stopping):
         self._deadline = clock.now()
         self._motion_t = 0.0
         self._lost_s = 0.0
-        self._setpoint: Vec3 | None = None  # the last command's target: idle ticks hold it
+        self._setpoint: Vec3 | None = None  # the last command's target, rejoin offset included
+        # The path's own last target (no offset): idle ticks hold it. Holding _setpoint instead added the
+        # offset again on every tick a rejoin was under way: a 20 ms late idle tick walked the arm 8 mm at
+        # 350 mm/s (the speed fault a loaded CI run met between a scan's last palpation and its park).
+        self._hold_mm: Vec3 | None = None
         self._error: Vec3 | None = None  # tip minus target when the last command went out
         self.rejoin = Rejoin(self.period_s)  # the drift over a late tick, being taken back
         # A gap longer than this left the arm in the bridge's gravity hold (its hold plus its ramp): it drifted.
@@ -98,7 +102,7 @@ class ServoLoop(Sensing, Stopping):
         (one exchange a tick). home=False is for a person holding the arm (a manual session)."""
         self.robot.enable()
         self.motors_on = True
-        self._setpoint, self._error, self._task_target = None, None, None
+        self._setpoint, self._hold_mm, self._error, self._task_target = None, None, None, None
         self.rejoin.reset()
         self._sensor_lost = None
         self._deadline = self.clock.now() + self.period_s
@@ -170,7 +174,7 @@ class ServoLoop(Sensing, Stopping):
                 fault = self._check(tick, math.inf)
                 if fault is not None:
                     self._stop_for(fault, tick)
-                self._command(tick, tick.tip_mm if self._setpoint is None else self._setpoint)
+                self._command(tick, tick.tip_mm if self._hold_mm is None else self._hold_mm)
             else:
                 self.robot.write(NO_CURRENT)
                 fault = self._idle_fault(tick)
@@ -216,6 +220,7 @@ class ServoLoop(Sensing, Stopping):
     def _command(self, tick: Tick, target: Vec3) -> None:
         """Write the currents that take the tip to the task's target, rejoining the path after a late tick."""
         velocity = self._path_velocity(target)
+        self._hold_mm = target
         rejoin = self.rejoin
         if tick.gap_s > self.drift_after_s and self._error is not None:
             rejoin.drifted(tick.tip_mm, tick.velocity_mm_s, target, velocity, self._error, self._velocity_error)
