@@ -390,10 +390,11 @@ def test_a_free_form_map_that_needs_more_noise_than_readings_have_is_probed_on_i
 @pytest.mark.parametrize("shape", ["half", "disc"])
 def test_a_free_form_regions_sds_are_its_boundarys_carried_to_its_centroid_and_area(shape):
     """A map whose boundary is known to δ = σ/|∇μ| = 1 mm everywhere, ℓ = 6 mm: the region's centroid
-    and equal-area radius have the sds that δ gives them (for a disc, a circle fit's δ·√(2/N) and
-    δ/√N, N = 2πr/ℓ; for the stiff half of the tissue, found by integrating along its straight
-    boundary), and the boundary's own sd is δ. A circle fitted to a straight boundary has no centre:
-    reported that way, a half-stiff map's sds never came near the tolerance however well it was read."""
+    and equal-area radius have the sds that δ gives them (for a disc, a circle fit's δ·√(4/N) for the
+    centre's distance, both axes, and δ/√N, N = 2πr/ℓ; for the stiff half of the tissue, found by
+    integrating along its straight boundary), and the boundary's own sd is δ. A circle fitted to a
+    straight boundary has no centre: reported that way, a half-stiff map's sds never came near the
+    tolerance however well it was read."""
     from palpd.learner.lumps import Map, find_lumps
 
     axis = np.linspace(-30.0, 30.0, 121)
@@ -405,11 +406,11 @@ def test_a_free_form_regions_sds_are_its_boundarys_carried_to_its_centroid_and_a
     if shape == "half":
         area, length = 27.0 * 60.0, 60.0
         moment = 60.0 * 13.5**2 + 2.0 * 30.0**3 / 3.0  # ∫ |p − c|² along x = 3, c = (16.5, 0)
-        centre_sd = math.sqrt(6.0 * moment / 2.0) / area
+        centre_sd = math.sqrt(6.0 * moment) / area
         radius_sd = math.sqrt(6.0 * length) / (2.0 * math.sqrt(math.pi * area))
     else:
         n = 2.0 * math.pi * 10.0 / 6.0
-        centre_sd, radius_sd = math.sqrt(2.0 / n), 1.0 / math.sqrt(n)
+        centre_sd, radius_sd = math.sqrt(4.0 / n), 1.0 / math.sqrt(n)
     assert lump.boundary_sd_mm == pytest.approx(1.0, rel=0.05)
     assert lump.center_sd_mm == pytest.approx(centre_sd, rel=0.1)
     assert lump.radius_sd_mm == pytest.approx(radius_sd, rel=0.1)

@@ -146,8 +146,9 @@ def _region_uncertainty(m: Map, polygon: np.ndarray, centre: np.ndarray, area: f
     The boundary inside the area moves across itself by δ = σ / |∇(μ − τ)| (capped at the area's size),
     neighbouring stretches together: about one independent move per kernel length ℓ of boundary. A move
     δ over a stretch ds changes the area by δ·ds and the centroid by (p − c)·δ·ds / A, so
-    Var A = ℓ Σ δ² ds and Var c = ℓ Σ |p − c|² δ² ds / (2 A²) per axis, and r = √(A/π) moves by
-    δA / (2πr). For a circle these are a circle fit's δ/√N and δ·√(2/N), N = 2πr/ℓ; but a circle fitted
+    Var A = ℓ Σ δ² ds and E|Δc|² = ℓ Σ |p − c|² δ² ds / A² (the centroid's distance, both axes, as a
+    parametric lump's centre sd is), and r = √(A/π) moves by δA / (2πr). For a circle these are a circle
+    fit's δ/√N and δ·√(4/N), N = 2πr/ℓ; but a circle fitted
     to the boundary (what was reported before) has no centre to speak of where the boundary is nearly
     straight, as across a stiff half of the tissue. Stretches along the area's edge do not move."""
     floor = m.cell_mm / math.sqrt(12.0)  # the grid cannot say better than this
@@ -165,7 +166,7 @@ def _region_uncertainty(m: Map, polygon: np.ndarray, centre: np.ndarray, area: f
     spread = np.minimum(m.at(m.std, mid) / slope, span) ** 2 * ds  # δ² ds
     length = min(m.length_mm, float(ds.sum()))  # a boundary shorter than ℓ moves as one
     area_sd = math.sqrt(length * float(spread.sum()))
-    centre_sd = math.sqrt(length * float(np.sum((mid - centre) ** 2, axis=1) @ spread) / 2.0) / area
+    centre_sd = math.sqrt(length * float(np.sum((mid - centre) ** 2, axis=1) @ spread)) / area
     radius_sd = area_sd / (2.0 * math.pi * math.sqrt(area / math.pi))
     boundary_sd = math.sqrt(float(spread.sum() / ds.sum()))
     return max(centre_sd, floor), max(radius_sd, floor), max(boundary_sd, floor)
