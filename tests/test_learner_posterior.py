@@ -73,6 +73,16 @@ def test_the_reported_radius_sd_is_the_posteriors(sharpness, count):
     assert np.all(np.isfinite(checked.cov)) and np.allclose(checked.cov, checked.cov.T)
 
 
+def test_a_centres_sd_is_its_rms_distance_from_the_truth():
+    """What `--tolerance-mm` bounds is how far off a centre may be: the distance, both axes (per axis, a scan
+    stopped on a lump at 0.43 mm that was 0.56 mm off it: touching-lumps seed 2)."""
+    fit, _ = circle(readings(4.0, 40))
+    centre = slice(fit.family.lump_slice(0).start, fit.family.lump_slice(0).start + 2)
+    draws = np.random.default_rng(0).multivariate_normal(fit.theta, fit.cov, 20000)
+    rms_mm = math.sqrt(np.mean(np.sum((draws[:, centre] - fit.theta[centre]) ** 2, axis=1)))
+    assert describe.lumps_of(fit)[0].center_sd_mm == pytest.approx(rms_mm, rel=0.03)
+
+
 def test_where_the_linearisation_is_wrong_it_is_corrected():
     """The deep lump: the Laplace radius sd is more than twice the posterior's; checked, it is not."""
     obs = readings(2.0)
