@@ -15,6 +15,7 @@ from palpd.commands.bench_stall import Pattern, paper_scene, run_pattern
 from palpd.config import Settings
 from palpd.control.controller import CartesianPD, _spectral_radius
 from palpd.control.tasks import MoveTo
+from palpd.errors import ScanFault
 from palpd.scan import FixedPlan, run_scan
 
 CAP_N = Settings().safety.force_cap_n
@@ -148,8 +149,6 @@ def test_a_late_idle_tick_between_tasks_holds_the_arm_where_the_path_left_it():
 def test_a_fault_latched_between_palpations_is_in_the_scan_report():
     """A fault the idle hold latches between tasks leaves the motors off: the scan's closing stop finds
     nothing to park, and the report must still say the scan ended in it (it used to say: no fault)."""
-    from palpd.errors import ScanFault
-
     settings = Settings()
     bench = open_simulated_bench(settings, paper_scene())
 
