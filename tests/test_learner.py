@@ -84,6 +84,29 @@ def test_an_elongated_lump_is_an_ellipse_with_its_axes_and_angle():
     assert all(sd < 1.0 for sd in lump.axes_sd_mm) and lump.edge_mm > 0
 
 
+def read_along_its_axis(k_at, center, axes, angle_deg, lattice_mm):
+    """A learner given readings on a lattice and on three lines along a long lump (its axis and either side)."""
+    axis = np.arange(-27.0, 27.1, lattice_mm)
+    spots = [(x, y) for x in axis for y in axis]
+    c, s = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
+    for t in np.linspace(-axes[0] - 3.0, axes[0] + 3.0, 9):
+        for off in (-axes[1] - 1.5, 0.0, axes[1] + 1.5):
+            spots.append((center[0] + t * c - off * s, center[1] + t * s + off * c))
+    learner = Learner((60.0, 60.0), LearnerSettings(), 0.3, 0)
+    for xy in spots:
+        k = k_at(xy)
+        learner.observe(xy, k, 0.01 * k)
+    return learner
+
+
+def test_a_long_lump_read_along_its_axis_is_decided_without_an_error():
+    """A hypothesis preferred to the chosen one whose evidence check moved it to where every lump is felt
+    has no unfelt lump to point at (it raised IndexError here)."""
+    center, axes, angle = (2.0, -3.0), (18.0, 3.5), 20.0
+    learner = read_along_its_axis(ellipse_field(center, axes, angle, 0.6), center, axes, angle, 6.0)
+    assert learner.model()["chosen"] != "none" and learner.lumps()
+
+
 def test_a_gradual_gaussian_rise_is_one_lump_at_its_half_height():
     def k_at(xy):
         return TISSUE + (0.56 - TISSUE) * math.exp(-((xy[0] + 4) ** 2 + (xy[1] - 6) ** 2) / (2 * 7.0**2))

@@ -286,8 +286,9 @@ class Hypotheses:
             if fit.supported or self._evidence_checked(name, obs).log_evidence <= chosen_log_evidence:
                 continue
             fit = self.fits[name]
-            j = evidence.unfelt(fit.family, fit.theta, obs, self.noise_floor)[0]
-            return fit.theta[fit.family.lump_slice(j)][:2]
+            unfelt = evidence.unfelt(fit.family, fit.theta, obs, self.noise_floor)
+            if unfelt:  # the check may have moved the fit to where every lump is felt: nothing to look for
+                return fit.theta[fit.family.lump_slice(unfelt[0])][:2]
         return None
 
     def _beats(self, name: str, best: str, obs: Observations) -> bool:
