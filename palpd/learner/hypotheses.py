@@ -75,7 +75,8 @@ class Hypotheses:
         """A pass over the hypotheses, one refit per step (a generator yielding each step's work, so that
         a pass can be spread over updates): none; k circles while the last leaves a reading
         unexplained; ellipses for the best count (and one fewer: an elongated lump can look like two
-        circles)."""
+        circles), one ellipse, and the free-form map's count of regions (or like three or more: a 10 × 4 mm
+        lump read along its axis was three circles, and ellipse:1 was never fitted)."""
         priors = self.priors(obs)
         self.tissue_log = tissue_log
         before = dict(self.fits)  # as the readings before these left them (a surprise can pull a refit astray)
@@ -102,7 +103,10 @@ class Hypotheses:
             if fit.supported and self._beats(fit.name, self._name_of(best_k), obs):
                 best_k = k
             yield fit.work
-        for k in range(max(1, best_k - 1 if best_k <= 2 else best_k), best_k + 1):
+        counts = set(range(max(1, best_k - 1 if best_k <= 2 else best_k), best_k + 1))
+        if best_k:  # n circles in a row along an elongated lump are one ellipse (or as many as the map's regions)
+            counts |= {1} | ({len(regions)} if 1 <= len(regions) < best_k else set())
+        for k in sorted(counts):
             circles = self.fits.get(f"circles:{k}")
             if circles is not None and circles.supported:
                 family = shapes.Family("ellipses", k, priors.scale_mm)
