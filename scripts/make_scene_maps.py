@@ -9,7 +9,9 @@ relative measurement noise where a real map would have one:
   with a ~6 mm wide rise, 2.5× the soft side, 2 % noise (a 1.5 mm grid);
 - gradual-lump.csv: a lump whose stiffness rises gradually, like a Gaussian (sd 7 mm), 4.7× at
   its top: no sharp edge anywhere;
-- elongated-lump.csv: an elongated lump, 12 × 5 mm semi-axes at 30°, 6.7× the tissue.
+- elongated-lump.csv: an elongated lump, 12 × 5 mm semi-axes at 30°, 6.7× the tissue;
+- narrow-lump.csv: a narrower one with a sharper edge, 10 × 4 mm at −50°, 4× the tissue (read along
+  its axis it looks like a row of three circles).
 """
 from __future__ import annotations
 
@@ -45,6 +47,13 @@ def elongated_lump(xy: np.ndarray) -> np.ndarray:
     return TISSUE + (0.8 - TISSUE) / (1.0 + rho**8)
 
 
+def narrow_lump(xy: np.ndarray) -> np.ndarray:
+    c, s = math.cos(math.radians(-50.0)), math.sin(math.radians(-50.0))
+    ux, uy = xy[:, 0] - 8.0, xy[:, 1] + 10.0
+    rho = np.hypot((c * ux + s * uy) / 10.0, (-s * ux + c * uy) / 4.0)
+    return TISSUE + (0.48 - TISSUE) / (1.0 + np.exp((rho - 1.0) / 0.08))  # edge 0.3-0.8 mm wide
+
+
 def write(name: str, xy: np.ndarray, k: np.ndarray) -> None:
     rows = ["x_mm,y_mm,stiffness_n_per_mm"] + [f"{x:.2f},{y:.2f},{v:.5f}" for (x, y), v in zip(xy, k)]
     (OUT / name).write_text("\n".join(rows) + "\n")
@@ -58,6 +67,7 @@ def main() -> None:
     xy = grid(1.0)
     write("gradual-lump.csv", xy, gradual_lump(xy))
     write("elongated-lump.csv", xy, elongated_lump(xy))
+    write("narrow-lump.csv", xy, narrow_lump(xy))
 
 
 if __name__ == "__main__":
