@@ -495,3 +495,39 @@ def test_a_reading_that_surprises_the_chosen_fit_is_tried_as_one_lump_more():
     centres = [lump.center_mm for lump in learner.lumps()]
     assert min(math.dist(c, (0.0, -14.0)) for c in centres) < 2.0, centres  # the new lump where it was felt
     assert min(math.dist(c, (15.0, 12.0)) for c in centres) < 1.0, centres  # the one mapped before, kept
+
+
+def test_a_lump_whose_edge_locked_into_a_wrong_shape_is_refitted_out_of_it():
+    """touching-lumps (seed 0) ended its budget on four circles, one false: the third lump's fit had locked
+    into Gaussian tails (λ at its bound) and a 2.4 sharpness, 48 nats of log posterior below its true
+    power-law edge, and a fourth lump made up the difference. Fresh starts (one lump more than the fit of
+    two, k-means groups) did not find the way out on the scan's 36 spots; the fit itself with every lump's
+    edge and tails reset does."""
+    from drivers.sim.tissue import lump_profile, lump_sharpness
+    from palpd.learner import evidence, hypotheses as hypotheses_module, shapes
+
+    lumps, sharpness = [((-8.0, 0.0), 5.0), ((4.0, 0.0), 5.0), ((-1.0, 13.5), 5.0)], lump_sharpness(5.0, 2.0)
+    spots = [(-7.5, -8.0), (-22.5, -24.0), (7.5, -24.0), (22.5, -8.0), (7.5, 8.0), (-7.5, 24.0), (-22.5, 8.0),
+             (22.5, 24.0), (11.0, -10.0), (14.0, -1.0), (5.0, 9.0), (3.0, 9.0), (22.5, -24.0), (-22.5, 24.0),
+             (-4.0, 3.0), (-14.0, 7.0), (16.0, 8.0), (4.0, -4.0), (7.0, -4.0), (-4.0, -9.0), (1.0, -6.0),
+             (-12.0, -18.0), (-18.0, -8.0), (6.0, 7.0), (3.0, 7.0), (2.0, 18.0), (5.0, -2.0), (2.0, 16.0),
+             (0.0, 12.0), (0.0, 10.0), (1.0, 1.0), (23.0, 1.0), (-7.2, 1.2), (-6.0, 14.0), (-11.0, 1.0), (9.0, 1.0)]
+    assert len(spots) % hypotheses_module.RESTART_EVERY == 0  # a refit with fresh starts
+    obs = Observations()
+    for p in spots:  # as the simulator feels lumps of 0.8 N/mm 2 mm deep in 0.12 N/mm tissue
+        obs.add(p, "fit", 0.12 + max(0.68 * lump_profile(math.dist(p, c), r, sharpness) for c, r in lumps), 0.0004)
+    hypotheses = Hypotheses((60.0, 60.0), 0.3, 0.01)
+    priors = hypotheses.priors(obs)
+    family = shapes.Family("circles", 3, priors.scale_mm)
+
+    def fitted(tails_and_edges):
+        lump_params = [[*c, math.log(r), tail, math.log(s), math.log(0.68 / 0.12)]
+                       for (c, r), (tail, s) in zip(lumps, tails_and_edges)]
+        return evidence.fit(family, obs, priors, [np.array([math.log(0.12), 0.0, 0.0, *np.ravel(lump_params)])], 0.01)
+
+    truth = fitted([(0.0, sharpness)] * 3)
+    locked = fitted([(0.0, sharpness)] * 2 + [(1.5, 2.4)])
+    assert locked.log_posterior < truth.log_posterior - 20.0, "the case needs a mode the third lump is locked in"
+    hypotheses.fits["circles:3"] = locked
+    hypotheses.update(obs, [], math.log(0.12))
+    assert hypotheses.fits["circles:3"].log_posterior >= truth.log_posterior - 1.0
