@@ -531,3 +531,28 @@ def test_a_lump_whose_edge_locked_into_a_wrong_shape_is_refitted_out_of_it():
     hypotheses.fits["circles:3"] = locked
     hypotheses.update(obs, [], math.log(0.12))
     assert hypotheses.fits["circles:3"].log_posterior >= truth.log_posterior - 1.0
+
+
+def test_two_touching_lumps_read_around_but_not_between_are_read_in_the_middle_before_one_ellipse_stands():
+    """Two 5 mm lumps whose edges are 2 mm apart, read around them (and inside, near either end) but not
+    between: one ellipse over both explains every reading as well as two circles, and with fewer parameters
+    won at 0.9999; it stopped there (a synthetic touching-lumps run: one lump of three reported, IoU 0.35).
+    An ellipse is felt at its middle before it stands; the reading there is the two lumps' waist."""
+    from palpd.config import LearnerSettings
+    from palpd.learner import Learner
+    from drivers.sim.tissue import lump_profile, lump_sharpness
+
+    lumps, sharpness = [((-8.0, 0.0), 5.0), ((4.0, 0.0), 5.0)], lump_sharpness(5.0, 2.0)
+    def k_at(p):
+        return 0.12 + max(0.68 * lump_profile(math.dist(p, c), r, sharpness) for c, r in lumps)
+    spots = [(7.5, -8.0), (-7.5, -24.0), (-22.5, -8.0), (-7.5, 8.0), (-22.5, 24.0), (7.5, 24.0), (22.5, 8.0),
+             (22.5, -24.0), (-4.0, -9.0), (-7.0, -1.0), (-22.5, -24.0), (22.5, 24.0), (-7.0, 1.0), (-7.0, -5.0),
+             (5.0, -2.0), (13.0, 3.0), (10.0, -1.0), (-13.0, 1.0)]
+    learner = Learner((60.0, 60.0), LearnerSettings(grid_points=61), 0.3, 1)
+    for p in spots:
+        learner.observe(p, k_at(p), 0.0004)
+    assert learner.model()["chosen"] == "ellipse:1", "the case needs one ellipse chosen over both"
+    middle = learner.next_probe()
+    assert middle is not None and math.dist(middle, (-2.0, 0.0)) <= 1.5, middle
+    learner.observe(middle, k_at(middle), 0.0004)
+    assert learner.model()["chosen"] == "circles:2"

@@ -28,11 +28,18 @@ OUTSIDE_STEPS = 36
 
 
 def unconfirmed_centre(fit, readings_xy: np.ndarray, spacing_mm: float) -> np.ndarray | None:
-    """The centre of the first lump no reading has felt from inside, or None."""
+    """The centre of the first lump no reading has felt from inside, or None. An ellipse is felt at its
+    middle (within CONFIRM_RHO of its minor semi-axis of the centre): two round lumps side by side, read
+    around but not between, fit one ellipse as well as two circles, its readings inside near either end,
+    and only the middle tells them apart (two touching lumps: one ellipse at 0.9999, and the end)."""
     for params in lump_params(fit):
-        lr2, _ = shapes.log_rho2(params, readings_xy, fit.family.kind == "ellipses")
-        reach = max(CONFIRM_RHO, spacing_mm / math.exp(params[2]))
-        if not np.any(lr2 <= 2.0 * math.log(reach)):
+        if fit.family.kind == "ellipses":
+            _, minor, _ = shapes.axes_and_angle(params, True)
+            felt = np.hypot(*(readings_xy - params[:2]).T) <= max(CONFIRM_RHO * minor, spacing_mm)
+        else:
+            lr2, _ = shapes.log_rho2(params, readings_xy, False)
+            felt = lr2 <= 2.0 * math.log(max(CONFIRM_RHO, spacing_mm / math.exp(params[2])))
+        if not np.any(felt):
             return params[:2]
     return None
 
