@@ -27,6 +27,7 @@ MIN_WEIGHT = 0.01  # hypotheses below this weight are left out of the disagreeme
 MAX_RIVALS = 4
 CANDIDATE_STRIDE_MM = 1.0  # probes are chosen on a lattice at least this fine
 NEGLIGIBLE_NATS = 1e-3  # a reading the rivals disagree about by less than this tells them apart by nothing
+DECISIVE_WEIGHT = 1e-6  # a rival this far below the choice (14 nats) is left to the evidence alone (_decisive_spot)
 PREDICTED_SIGMA = 3.0  # never stop right after a reading the chosen fit did not predict within this many sd
 
 
@@ -153,13 +154,42 @@ class Decision:
         return (self.obs.y[exact] - f) / np.sqrt(self.obs.sd[exact] ** 2 + max(fit.noise_sd, self.noise_floor) ** 2)
 
     def _rivals_unread_lump(self) -> np.ndarray | None:
-        """Where a rival hypothesis (weight at least MIN_WEIGHT) has a lump that overlaps no chosen lump and
-        holds no palpation: the choice rests on the evidence's Occam factor alone there, and one reading
-        over that lump's centre tells the two apart. (Two lumps, one felt only on a flank: one long ellipse
-        won at 0.97 over the right two circles, whose second centre no reading came within 8 mm of.)"""
+        """Where one reading could overturn a confident choice that rests on the evidence's Occam factor
+        alone: a rival hypothesis's lump that overlaps no chosen lump and holds no palpation (weight at least
+        MIN_WEIGHT), else the spot where a living rival that explains the readings as well predicts most
+        unlike the chosen fit (`_decisive_spot`). (Two lumps, one felt only on a flank: one long ellipse won
+        at 0.97 over the right two circles, whose second centre no reading came within 8 mm of.)"""
         if "rival" not in self._cache:
-            self._cache["rival"] = self._find_rivals_unread_lump()
+            rival = self._find_rivals_unread_lump()
+            self._cache["rival"] = rival if rival is not None else self._decisive_spot()
         return self._cache["rival"]
+
+    def _decisive_spot(self) -> np.ndarray | None:
+        """The unprobed spot where a rival that explains the readings to their precision and the chosen fit
+        predict so differently that one reading could overturn the odds between them (½z² above their log
+        odds, z the difference over both predictions' sd and the noise), or None. However unlikely the
+        Occam factor makes a rival, a reading it is that sure of will say. Fit to the same readings, the two differ only where none was taken: two touching lumps
+        read around but not between were one ellipse at weight 0.99, over two circles that fitted as well
+        and predicted a third of its stiffness at the waist, 100 sd apart."""
+        chosen = self.choice.chosen
+        if chosen == "free-form" or chosen not in self.hypotheses.fits:
+            return None
+        cells = self._candidates()
+        cells = cells[~self.blocked[cells]]
+        if not len(cells):
+            return None
+        mean, var = self._moments(self.hypotheses.laplace(chosen), cells)
+        noise, best, spot = self._noise_var(), 0.0, None
+        for name, weight in self.choice.weights.items():
+            fit = self.hypotheses.laplace(name) if name != chosen else None
+            if fit is None or weight < DECISIVE_WEIGHT or fit.noise_sd > ADEQUATE_NOISE * self.noise_floor:
+                continue
+            rival_mean, rival_var = self._moments(fit, cells)
+            overturn = 0.5 * (mean - rival_mean) ** 2 / (var + rival_var + noise) - math.log(self.choice.weight / weight)
+            i = int(np.argmax(overturn))
+            if overturn[i] > best:
+                best, spot = float(overturn[i]), self.grid_xy[cells[i]]
+        return spot
 
     def _find_rivals_unread_lump(self) -> np.ndarray | None:
         if self.choice is None or self.choice.chosen == "free-form" or not self.probed:

@@ -115,8 +115,10 @@ def _pairs(k: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[np.ndarray],
-        noise_floor: float, noise_sd: float | None = None, max_iter: int = 60) -> Fit | None:
-    """The mode of the most evidence among those `starts` lead to, with σ_w re-estimated.
+        noise_floor: float, noise_sd: float | None = None, max_iter: int = 60, give_up: bool = True) -> Fit | None:
+    """The mode of the most evidence among those `starts` lead to, with σ_w re-estimated. `give_up`: a start
+    still HOPELESS nats above one before it after GIVE_UP_AFTER steps is dropped (the time it saves; but a
+    warm start in a poor mode is low at once, and a fresh one on its way to a far better mode can lag it).
 
     Modes are compared by evidence, not by height: two configurations can fit the readings
     equally well while one is a narrow coincidence of parameters and the other is what the
@@ -125,7 +127,7 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
     noise = max(noise_sd or noise_floor, noise_floor)
     thetas, costs, used = levenberg_marquardt_many(
         lambda many: stacked(family, many, obs, priors, noise), np.array([_inside(s, lo, hi) for s in starts]),
-        lo, hi, COST_TOLERANCE, max_iter, (GIVE_UP_AFTER, HOPELESS))
+        lo, hi, COST_TOLERANCE, max_iter, (GIVE_UP_AFTER, HOPELESS) if give_up else None)
     calls = int(used.sum())
     best, modes = None, []
     for theta, cost, lowest in zip(thetas, costs, np.minimum.accumulate(np.where(np.isfinite(costs), costs, np.inf))):

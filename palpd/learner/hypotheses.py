@@ -66,12 +66,14 @@ class Hypotheses:
     def priors(self, obs: Observations) -> Priors:
         return Priors(self.size_mm, self.min_contrast, float(np.median(obs.y)))
 
-    def update(self, obs: Observations, regions: list[Region], tissue_log: float) -> None:
-        """Refit every parametric hypothesis worth trying on the readings so far."""
-        for _ in self.refits(obs, regions, tissue_log):
+    def update(self, obs: Observations, regions: list[Region], tissue_log: float, thorough: bool = False) -> None:
+        """Refit every parametric hypothesis worth trying on the readings so far (`thorough`: each from
+        fresh starts too, whenever they were last restarted, and every start run to its end)."""
+        for _ in self.refits(obs, regions, tissue_log, thorough=thorough):
             pass
 
-    def refits(self, obs: Observations, regions: list[Region], tissue_log: float, max_starts: int | None = None):
+    def refits(self, obs: Observations, regions: list[Region], tissue_log: float, max_starts: int | None = None,
+               thorough: bool = False):
         """A pass over the hypotheses, one refit per step (a generator yielding each step's work, so that
         a pass can be spread over updates): none; k circles while the last leaves a reading
         unexplained; ellipses for the best count (and one fewer: an elongated lump can look like two
@@ -95,7 +97,7 @@ class Hypotheses:
             surprised = was if self._surprised_contender(was, obs) else None
             fewer = [prev] + ([surprised] if surprised is not None and k > 1 else [])
             fit = self._fit(family, obs, priors, lambda: self._circle_starts(fewer, obs, regions, k, priors),
-                            max_starts, fresh=surprised is not None)
+                            max_starts, fresh=surprised is not None, thorough=thorough)
             if fit is None:
                 break
             self.fits[fit.name] = fit
@@ -110,7 +112,8 @@ class Hypotheses:
             circles = self.fits.get(f"circles:{k}")
             if circles is not None and circles.supported:
                 family = shapes.Family("ellipses", k, priors.scale_mm)
-                fit = self._fit(family, obs, priors, lambda: self._ellipse_starts(circles, regions), max_starts)
+                fit = self._fit(family, obs, priors, lambda: self._ellipse_starts(circles, regions), max_starts,
+                                thorough=thorough)
                 if fit is not None:
                     self.fits[fit.name] = fit
                     seen.append(fit.name)
@@ -145,14 +148,17 @@ class Hypotheses:
     def _name_of(k: int) -> str:
         return "none" if k == 0 else f"circles:{k}"
 
-    def _fit(self, family, obs, priors, new_starts, max_starts: int | None = None, fresh: bool = False) -> Fit | None:
+    def _fit(self, family, obs, priors, new_starts, max_starts: int | None = None, fresh: bool = False,
+             thorough: bool = False) -> Fit | None:
         """Refit from where the hypothesis was; from fresh starts too when it is new, when the readings
         since surprised it (or the count one fewer: they may ask for one lump more), or every
-        RESTART_EVERY readings (a warm start can sit in a poor optimum)."""
+        RESTART_EVERY readings (a warm start can sit in a poor optimum). `thorough`: fresh starts, and none
+        given up for lagging the warm one (evidence.fit)."""
         old = self.fits.get(family.name)
         starts = [] if old is None else [old.theta]
         contender = self.weights.get(family.name, 0.0) >= CONTENDER_WEIGHT
-        warm_only = not (old is None or obs.n % RESTART_EVERY == 0 or fresh or self._surprised_contender(old, obs))
+        warm_only = not (old is None or obs.n % RESTART_EVERY == 0 or fresh or thorough
+                         or self._surprised_contender(old, obs))
         if not warm_only:
             starts += new_starts() + ([] if old is None else [_reshaped(old)] + (_resized(old) if contender else []))
         starts = starts[:max_starts]
@@ -161,8 +167,10 @@ class Hypotheses:
             starts = [np.array([priors.level, 0.0, 0.0])] + starts
         if not starts:
             return None
-        fit = evidence.fit(family, obs, priors, starts, self.noise_floor, None if old is None else old.noise_sd,
-                           iterations)
+        # (thorough: at the noise floor, not the last fit's σ_w: a poor mode's inflated σ_w flattens the cost,
+        # and fresh starts stop short of a better mode; σ_w is then re-estimated from the residuals)
+        noise_sd = None if old is None or thorough else old.noise_sd
+        fit = evidence.fit(family, obs, priors, starts, self.noise_floor, noise_sd, iterations, give_up=not thorough)
         # a warm start alone finds no other mode: the ridge the last fresh starts found is still the one known
         return replace(fit, alternatives=old.alternatives) if warm_only and fit is not None else fit
 
@@ -182,6 +190,9 @@ class Hypotheses:
         base = np.array([self.tissue_log, 0.0, 0.0])
         starts = [np.concatenate([fit.theta if k > 1 else base, lump]) for fit in fewer
                   for lump in self._new_lumps(fit, obs)]
+        ellipses = self.fits.get(f"ellipse:{k - 1}")
+        if ellipses is not None:
+            starts += _split(ellipses)
         clustered = self._stiff_clusters(obs, k)
         if clustered:
             starts += [np.concatenate([base, *lumps]) for lumps in clustered]
@@ -378,6 +389,26 @@ def _resized(fit: Fit) -> list[np.ndarray]:
             theta = fit.theta.copy()
             theta[fit.family.lump_slice(j).start + 2] += math.log(factor)
             out.append(theta)
+    return out
+
+
+def _split(ellipses: Fit) -> list[np.ndarray]:
+    """Circles one more than the ellipses, each ellipse in turn split in two along its major axis (the
+    others made round): two round lumps side by side fit one ellipse, and no other start need find them
+    (touching lumps: k-means grouped the stiff readings as one faint reading against the rest, and two
+    circles started from one lump plus another at the worst-explained reading ended 7-9 nats below the two
+    that fit)."""
+    k = ellipses.family.k
+    lumps = [ellipses.theta[ellipses.family.lump_slice(j)] for j in range(k)]
+    rounds = [np.concatenate([p[:2], [p[2]], p[5:]]) for p in lumps]  # the equal-area circle of each
+    out = []
+    for j, p in enumerate(lumps):
+        major, minor, angle_deg = shapes.axes_and_angle(p, True)
+        if major <= 1.2 * minor:
+            continue  # nearly round: one lump, not two
+        along = (major - minor) * np.array([math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))])
+        halves = [np.concatenate([p[:2] + side * along, [math.log(minor)], p[5:]]) for side in (-1.0, 1.0)]
+        out.append(np.concatenate([ellipses.theta[:3], *rounds[:j], *halves, *rounds[j + 1:]]))
     return out
 
 

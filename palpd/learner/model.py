@@ -94,6 +94,14 @@ class Learner(Decision):
         if self._refit_pays():
             self._refit()
         self._weigh()
+        if self.decided():
+            # About to stop. Between restarts (every hypotheses.RESTART_EVERY readings) the fits are refitted
+            # warm, and a warm fit can sit in a poor mode that makes its hypothesis look unlikely: two circles
+            # over two touching lumps, left 20 nats below their fresh fit, lost to one ellipse that no reading
+            # between them had tested (its fresh starts were given up for lagging the warm one: evidence.fit).
+            # So the rule is asked again after a thorough refit: fresh starts, each run to its end.
+            self._cache.clear()
+            self._weigh(thorough=True)
         # The chosen fit's covariance is checked now, against the readings it was fitted to, not on first use:
         # a scan whose estimate is read between readings (the daemon publishes one after every palpation)
         # would otherwise have it checked against other readings than one left alone, and take another course.
@@ -119,14 +127,15 @@ class Learner(Decision):
             return free_form_levels(k, self.min_contrast)
         return supervised_levels(k, self.supervised_tau_n_per_mm)
 
-    def _weigh(self) -> None:
+    def _weigh(self, thorough: bool = False) -> None:
         """Refit and weigh the hypotheses: a whole pass (hypotheses.refits) every update while readings
         are few; beyond FULL_UPDATE_POINTS every hypothesis assimilates each new reading (a Kalman step)
         and the pass goes on one refit every n/REFITS_PER_DOUBLING readings, from at most LIGHT_STARTS
-        starts: bounded work per update, the fits still revisited as often as the data double."""
+        starts: bounded work per update, the fits still revisited as often as the data double. `thorough`:
+        a whole pass, every hypothesis from fresh starts too, each run to its end (hypotheses.update)."""
         n = self.obs.n
-        if n <= FULL_UPDATE_POINTS or self.choice is None:
-            self.hypotheses.update(self.obs, self._find_regions(), self._tissue_log())
+        if n <= FULL_UPDATE_POINTS or self.choice is None or thorough:
+            self.hypotheses.update(self.obs, self._find_regions(), self._tissue_log(), thorough)
             self._pass = None
         else:
             self.hypotheses.assimilate(self.obs)
