@@ -79,8 +79,13 @@ class Decision:
 
     def decided(self) -> bool:
         """The stop rule holds: the model choice is confident, no spot of the tissue is unexplored,
-        each lump is pinned down by readings (coverage.py) and what is reported has posterior sd within
-        the tolerance."""
+        each lump is pinned down by readings (coverage.py), what is reported has posterior sd within
+        the tolerance, and no rival as good a fit could overturn the choice with one reading."""
+        return self._stands() and self._decisive_spot() is None
+
+    def _stands(self) -> bool:
+        """The stop rule holds but for the one reading a rival may still ask for (`_decisive_spot`,
+        looked for only once all else holds: it weighs every rival over the whole grid)."""
         if not self._choice_made() or self._unexplored() is not None or self._unpinned() is not None:
             return False
         if self._hidden_lump() is not None or abs(self.surprise_sd) > PREDICTED_SIGMA or self._unfelt() is not None:
@@ -154,17 +159,20 @@ class Decision:
         return (self.obs.y[exact] - f) / np.sqrt(self.obs.sd[exact] ** 2 + max(fit.noise_sd, self.noise_floor) ** 2)
 
     def _rivals_unread_lump(self) -> np.ndarray | None:
-        """Where one reading could overturn a confident choice that rests on the evidence's Occam factor
-        alone: a rival hypothesis's lump that overlaps no chosen lump and holds no palpation (weight at least
-        MIN_WEIGHT), else the spot where a living rival that explains the readings as well predicts most
-        unlike the chosen fit (`_decisive_spot`). (Two lumps, one felt only on a flank: one long ellipse won
-        at 0.97 over the right two circles, whose second centre no reading came within 8 mm of.)"""
+        """Where a rival hypothesis (weight at least MIN_WEIGHT) has a lump that overlaps no chosen lump and
+        holds no palpation: the choice rests on the evidence's Occam factor alone there, and one reading
+        over that lump's centre tells the two apart. (Two lumps, one felt only on a flank: one long ellipse
+        won at 0.97 over the right two circles, whose second centre no reading came within 8 mm of.)"""
         if "rival" not in self._cache:
-            rival = self._find_rivals_unread_lump()
-            self._cache["rival"] = rival if rival is not None else self._decisive_spot()
+            self._cache["rival"] = self._find_rivals_unread_lump()
         return self._cache["rival"]
 
     def _decisive_spot(self) -> np.ndarray | None:
+        if "decisive" not in self._cache:
+            self._cache["decisive"] = self._find_decisive_spot()
+        return self._cache["decisive"]
+
+    def _find_decisive_spot(self) -> np.ndarray | None:
         """The unprobed spot where a rival that explains the readings to their precision and the chosen fit
         predict so differently that one reading could overturn the odds between them (½z² above their log
         odds, z the difference over both predictions' sd and the noise), or None. However unlikely the
@@ -293,6 +301,9 @@ class Decision:
         rival = self._rivals_unread_lump() if chosen else None
         if rival is not None:  # a rival's lump where nothing was read: one reading over it says if it is there
             return float(rival[0]), float(rival[1])
+        decisive = self._decisive_spot() if chosen and self._stands() else None
+        if decisive is not None:  # all else holds: one reading where a rival as good disagrees most
+            return float(decisive[0]), float(decisive[1])
         cells = self._candidates()
         score = self._score(cells)
         here = self.probed[-1] if self.probed else None
