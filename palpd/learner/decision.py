@@ -173,12 +173,12 @@ class Decision:
         return self._cache["decisive"]
 
     def _find_decisive_spot(self) -> np.ndarray | None:
-        """The unprobed spot where a rival that explains the readings to their precision and the chosen fit
-        predict so differently that one reading could overturn the odds between them (½z² above their log
-        odds, z the difference over both predictions' sd and the noise), or None. However unlikely the
-        Occam factor makes a rival, a reading it is that sure of will say. Fit to the same readings, the two differ only where none was taken: two touching lumps
-        read around but not between were one ellipse at weight 0.99, over two circles that fitted as well
-        and predicted a third of its stiffness at the waist, 100 sd apart."""
+        """The unprobed spot where a rival (weight at least DECISIVE_WEIGHT) that explains the readings to
+        their precision and the chosen fit predict so differently that one reading could overturn the odds
+        between them (½z² above their log odds, z the difference over both predictions' sd and the noise),
+        or None. Fit to the same readings, the two differ only where none was taken, and only the Occam
+        factor parts them: two touching lumps read around but not between were one ellipse at 0.9999, over
+        two circles that fitted as well and predicted a third of its stiffness at the waist."""
         chosen = self.choice.chosen
         if chosen == "free-form" or chosen not in self.hypotheses.fits:
             return None
@@ -193,7 +193,8 @@ class Decision:
             if fit is None or weight < DECISIVE_WEIGHT or fit.noise_sd > ADEQUATE_NOISE * self.noise_floor:
                 continue
             rival_mean, rival_var = self._moments(fit, cells)
-            overturn = 0.5 * (mean - rival_mean) ** 2 / (var + rival_var + noise) - math.log(self.choice.weight / weight)
+            odds = math.log(self.choice.weight / weight)
+            overturn = 0.5 * (mean - rival_mean) ** 2 / (var + rival_var + noise) - odds
             i = int(np.argmax(overturn))
             if overturn[i] > best:
                 best, spot = float(overturn[i]), self.grid_xy[cells[i]]

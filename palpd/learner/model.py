@@ -97,8 +97,8 @@ class Learner(Decision):
         if self.decided():
             # About to stop. Between restarts (every hypotheses.RESTART_EVERY readings) the fits are refitted
             # warm, and a warm fit can sit in a poor mode that makes its hypothesis look unlikely: two circles
-            # over two touching lumps, left 20 nats below their fresh fit, lost to one ellipse that no reading
-            # between them had tested (its fresh starts were given up for lagging the warm one: evidence.fit).
+            # over two touching lumps, left at 3-4 times the readings' noise, lost to one ellipse that no
+            # reading between them had tested (their fresh starts were given up for lagging the warm one).
             # So the rule is asked again after a thorough refit: fresh starts, each run to its end.
             self._cache.clear()
             self._weigh(thorough=True)
