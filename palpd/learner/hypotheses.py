@@ -160,7 +160,9 @@ class Hypotheses:
         warm_only = not (old is None or obs.n % RESTART_EVERY == 0 or fresh or thorough
                          or self._surprised_contender(old, obs))
         if not warm_only:
-            starts += new_starts() + ([] if old is None else [_reshaped(old)] + (_resized(old) if contender else []))
+            starts += new_starts()
+            if old is not None and family.k:  # (`none` has no lump to reshape or resize)
+                starts += [_reshaped(old)] + (_resized(old) if contender else [])
         starts = starts[:max_starts]
         iterations = LIGHT_ITERATIONS if max_starts is not None else 60
         if family.k == 0:
