@@ -12,7 +12,7 @@ from typing import Callable
 
 
 def scan_settings(config=None, strategy=None, max_palpations=None, seed=None, depth_mm=None, speed_mm_s=None,
-                  confidence=None, train=None, tolerance_mm=None, palpation=None):
+                  confidence=None, train=None, tolerance_mm=None, palpation=None, coverage_mm=None):
     """Validated settings of one scan (defaults, then the config file, PALPD_ variables, then these)."""
     from palpd.config import load_settings
     from palpd.errors import UsageError
@@ -24,7 +24,8 @@ def scan_settings(config=None, strategy=None, max_palpations=None, seed=None, de
     return load_settings(config).updated(
         scan={"strategy": strategy, "max_palpations": max_palpations, "seed": seed},
         palpation={"depth_mm": depth_mm, "speed_mm_s": speed_mm_s, "mode": palpation},
-        learner={"confidence": confidence, "tolerance_mm": tolerance_mm, "training_set": train},
+        learner={"confidence": confidence, "tolerance_mm": tolerance_mm, "training_set": train,
+                 "coverage_mm": coverage_mm},
     )
 
 

@@ -166,6 +166,21 @@ def test_cli_confidence_out_of_range_is_one_line(run_cli):
     assert_one_line_error(result, "learner.confidence")
 
 
+def test_cli_coverage_mm_is_the_reach_a_verdict_claims(tmp_path, run_cli):
+    """--coverage-mm is the user's side of the missed-lump trade: "no lump" at 8 mm reads a 30 x 30 mm tissue
+    until no spot is farther than 8 mm from a reading (by default it claims 11 mm: 9 palpations, 10.6 mm),
+    and the report says how far that is."""
+    scene = tmp_path / "plain.toml"
+    scene.write_text('name = "plain-30"\n[tissue]\nsize_mm = [30.0, 30.0]\nstiffness_n_per_mm = 0.12\n')
+    result = run_cli("scan", "--scene", scene, "--strategy", "active", "--coverage-mm", "8", "--quiet",
+                     "--report", tmp_path / "r.json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert report["verdict"] == "none" and report["model"]["unfelt_radius_mm"] <= 8.0, report["model"]
+    assert_one_line_error(run_cli("scan", "--scene", scene, "--strategy", "active", "--coverage-mm", "0"),
+                          "learner.coverage_mm")
+
+
 def test_cli_unwritable_report(tmp_path, run_cli):
     (tmp_path / "blocker").write_text("")
     result = run_cli("scan", "--scene", SCENES / "no-lump.toml", "--max-palpations", "1", "--quiet",

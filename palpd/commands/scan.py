@@ -18,6 +18,10 @@ def add_parser(subparsers):
                       help="stop once the lump hypothesis the evidence chose has this weight (active; default 0.9)")
     scan.add_argument("--tolerance-mm", type=float, metavar="T",
                       help="...and every centre and radius has posterior sd at most T (active; default 0.5)")
+    scan.add_argument("--coverage-mm", type=float, metavar="MM",
+                      help="...and no spot is farther than MM from a reading (active; default 18): a lump felt over "
+                           "less than that could lie unfelt between the readings. Lower finds more small lumps "
+                           "and costs palpations (README, \"Lumps never felt\")")
     scan.add_argument("--seed", type=int, metavar="N")
     scan.add_argument("--train", metavar="FILE.csv",
                       help="labelled dataset (tumor column): learn the lump threshold from it (active strategy)")
@@ -37,7 +41,7 @@ def run(args) -> int:
 
     settings = scan_settings(args.config, args.strategy, args.max_palpations, args.seed, args.depth_mm,
                              args.speed_mm_s, args.confidence, args.train, args.tolerance_mm,
-                             args.palpation)
+                             args.palpation, args.coverage_mm)
     scene = load_scene_named(args.scene)
     if settings.learner.training_set:
         from palpd.datafile import read_training_set
