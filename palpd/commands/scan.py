@@ -121,6 +121,8 @@ def _verdict_line(report: dict) -> str:
             "undetermined": "undetermined"}[report["verdict"]]
     unfelt = model.get("unfelt_radius_mm") if model and report["verdict"] != "undetermined" else None
     reach = "" if unfelt is None else f"; a lump under {unfelt:.1f} mm in radius could lie unfelt between the readings"
+    if reach and report.get("strategy") == "active":  # the user's side of that trade, where the user meets it
+        reach += " (--coverage-mm reads closer)"
     return f"verdict: {text}{chosen}{reach}"
 
 
