@@ -53,7 +53,7 @@ def run_simulated_scan(settings, scene, progress: Callable | None = None, realti
         close()
     truth = metrics.scene_truth(scene, settings.scan.min_contrast)
     report["truth"] = {"lumps": truth, **report.get("truth", {})}  # with the world\'s true peak force, if known
-    report["metrics"] = metrics.compare(truth, report["lumps"])
+    report["metrics"] = metrics.compare(truth, report["lumps"], scene.tissue.size_mm)
     return report, planner
 
 

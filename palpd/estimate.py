@@ -33,7 +33,8 @@ class LumpEstimate:
     angle_sd_deg: float | None = None
     edge_mm: float | None = None  # where modelled: 75 % to 25 % of the lump's height along a radius
     edge_sd_mm: float | None = None
-    boundary_sd_mm: float | None = None  # free-form: the boundary's position sd, RMS along it
+    boundary_sd_mm: float | None = None  # free-form or cut: the boundary's position sd, RMS along it (on the tissue)
+    cut_by_edge: bool = False  # mostly off the tissue: centre and radius are of its part on the tissue
 
     def as_dict(self) -> dict:
         out = {
@@ -49,6 +50,8 @@ class LumpEstimate:
         for name in ("angle_deg", "angle_sd_deg", "edge_mm", "edge_sd_mm", "boundary_sd_mm"):
             if getattr(self, name) is not None:
                 out[name] = round(getattr(self, name), 3)
+        if self.cut_by_edge:
+            out["cut_by_edge"] = True
         return out
 
 

@@ -5,7 +5,9 @@ map, the regions of the map itself: where the map rises above its tissue level
 by at least half `min_contrast`, each region's half-height area (halfway
 between the tissue level, the map's 10th percentile, and the region's top), as
 a polygon with its centroid and equal-area radius. IoU is the overlap of the
-reported boundary polygon with the true disc or polygon.
+reported boundary polygon with the true disc or polygon, on the tissue when its
+size is given: a lump's part off the tissue is nothing a palpation could feel,
+and what palpd reports is clipped to the tissue.
 """
 from __future__ import annotations
 
@@ -63,8 +65,9 @@ def map_regions(path, size_mm, min_contrast: float) -> list[dict]:
     return regions
 
 
-def compare(truth: list[dict], lumps: list[dict]) -> dict:
-    """Match each true lump to the nearest unmatched estimate; report errors and IoU."""
+def compare(truth: list[dict], lumps: list[dict], size_mm=None) -> dict:
+    """Match each true lump to the nearest unmatched estimate; report errors and IoU (on the tissue, given its
+    size)."""
     unmatched = list(range(len(lumps)))
     per_lump = []
     for true in truth:
@@ -78,7 +81,7 @@ def compare(truth: list[dict], lumps: list[dict]) -> dict:
             "found": True,
             "center_error_mm": round(math.dist(est["center_mm"], true["center_mm"]), 3),
             "radius_error_mm": round(abs(est["radius_mm"] - true["radius_mm"]), 3),
-            "iou": round(iou(est["boundary_mm"], true), 4),
+            "iou": round(iou(est["boundary_mm"], true, size_mm), 4),
         })
     found = [m for m in per_lump if m["found"]]
     return {
@@ -93,14 +96,18 @@ def compare(truth: list[dict], lumps: list[dict]) -> dict:
     }
 
 
-def iou(boundary_mm: list[list[float]], true: dict) -> float:
-    """Intersection over union of a polygon and the true lump (its polygon, else its disc), on a fine grid."""
+def iou(boundary_mm: list[list[float]], true: dict, size_mm=None) -> float:
+    """Intersection over union of a polygon and the true lump (its polygon, else its disc), on a fine grid (over
+    the tissue only, given its size)."""
     polygon = np.asarray(boundary_mm, dtype=float)
     centre, radius = np.asarray(true["center_mm"], dtype=float), float(true["radius_mm"])
     other = np.asarray(true["boundary_mm"], dtype=float) if true.get("boundary_mm") else None
     extent = other if other is not None else np.array([centre - radius, centre + radius])
     low = np.minimum(polygon.min(axis=0), extent.min(axis=0)) - 1.0
     high = np.maximum(polygon.max(axis=0), extent.max(axis=0)) + 1.0
+    if size_mm is not None:
+        half = np.asarray(size_mm, dtype=float) / 2
+        low, high = np.maximum(low, -half), np.minimum(high, half + IOU_GRID_MM)
     points = _grid(low, high)
     return _ratio(PolygonPath(polygon).contains_points(points), _inside_true(points, true))
 

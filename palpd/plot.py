@@ -17,6 +17,7 @@ matplotlib.use("Agg")  # files only; the daemon has no screen
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402
 from matplotlib.patches import Circle, Rectangle  # noqa: E402
+from matplotlib.transforms import offset_copy  # noqa: E402
 
 from palpd.errors import PalpdError  # noqa: E402
 
@@ -28,6 +29,7 @@ def plot_scan(report: dict, size_mm: tuple[float, float], path: str | Path, post
     """The scan's map as a PNG (or any format matplotlib writes, by the file's suffix)."""
     fig, ax = plt.subplots(figsize=(7.6, 6.0), dpi=110)
     half_w, half_h = size_mm[0] / 2, size_mm[1] / 2
+    ax.set(xlim=(-half_w - 5, half_w + 5), ylim=(-half_h - 5, half_h + 5), aspect="equal")
     ax.add_patch(Rectangle((-half_w, -half_h), size_mm[0], size_mm[1], fill=False, ec="0.6", ls=":"))
     if posterior is not None:
         draw_posterior(fig, ax, posterior)
@@ -37,7 +39,10 @@ def plot_scan(report: dict, size_mm: tuple[float, float], path: str | Path, post
     ax.set(xlim=(-half_w - 5, half_w + 5), ylim=(-half_h - 5, half_h + 5), aspect="equal",
            xlabel="x (mm, tissue frame)", ylabel="y (mm, tissue frame)", title=_title(report))
     if ax.get_legend_handles_labels()[0]:
-        ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.1), ncol=3, fontsize=7, frameon=False)
+        # below the x label whatever the tissue's proportions (an offset in points, not in axes heights)
+        below = offset_copy(ax.transAxes, fig=fig, y=-30, units="points")
+        ax.legend(loc="upper left", bbox_to_anchor=(0.0, 0.0), bbox_transform=below, ncol=3, fontsize=7,
+                  frameon=False)
     try:
         fig.savefig(path, bbox_inches="tight")
     except OSError as exc:
@@ -51,13 +56,19 @@ def draw_posterior(fig, ax, posterior: dict) -> None:
     xs, ys, p = np.asarray(posterior["xs_mm"]), np.asarray(posterior["ys_mm"]), np.asarray(posterior["p_lump"])
     c = posterior["confidence"]
     image = ax.pcolormesh(xs, ys, p, cmap="Purples", vmin=0.0, vmax=1.0, shading="nearest", alpha=0.8, zorder=0)
-    fig.colorbar(image, ax=ax, label="P(lump)", fraction=0.046, pad=0.02)
+    fig.colorbar(image, ax=ax, label="P(lump)", fraction=0.046, pad=0.02, shrink=_bar_shrink(ax))
     if p.min() < 1.0 - c < p.max() or p.min() < c < p.max():
         ax.contourf(xs, ys, p, levels=[1.0 - c, c], colors="none", hatches=["////"], zorder=1)
         ax.plot([], [], color="0.4", lw=4, alpha=0.4, label=f"uncertain: {1 - c:.0%} < P < {c:.0%}")
     if p.min() < 0.5 < p.max():
         ax.contour(xs, ys, p, levels=[0.5], colors="k", linewidths=1.2, zorder=2)
         ax.plot([], [], color="k", lw=1.2, label="P(lump) = 50 %")
+
+
+def _bar_shrink(ax) -> float:
+    """A colour bar as tall as the map: a tissue wider than tall draws a shorter map in the same box."""
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    return min(1.0, (y1 - y0) / (x1 - x0))
 
 
 def stiffness_norm(values) -> Normalize:
@@ -80,7 +91,7 @@ def draw_probes(fig, ax, probes: list[dict]) -> None:
         points = ax.scatter(xy[:, 0], xy[:, 1], c=[p["stiffness_n_per_mm"] for _, p in fitted], cmap="viridis",
                             norm=stiffness_norm(p["stiffness_n_per_mm"] for _, p in fitted), s=30,
                             edgecolors="k", linewidths=0.4, zorder=4, label="probe (number: order)")
-        bar = fig.colorbar(points, ax=ax, label="stiffness (N/mm)", fraction=0.046, pad=0.16)
+        bar = fig.colorbar(points, ax=ax, label="stiffness (N/mm)", fraction=0.046, pad=0.16, shrink=_bar_shrink(ax))
         bar.ax.yaxis.set_label_position("left")  # clear of the P(lump) bar beside it
         bar.ax.yaxis.set_ticks_position("left")
     if failed:

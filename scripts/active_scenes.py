@@ -47,7 +47,8 @@ def scan(scene, strategy: str, budget: int, seed: int) -> tuple[dict, dict]:
     settings = BASE[0].updated(scan={"strategy": strategy, "seed": seed})
     planner = plan(strategy, scene.tissue.size_mm, budget, seed, settings)
     report = run_scan(open_simulated_bench(settings, scene, seed=seed), settings, planner)
-    return report, metrics.compare(metrics.scene_truth(scene, settings.scan.min_contrast), report["lumps"])
+    truth = metrics.scene_truth(scene, settings.scan.min_contrast)
+    return report, metrics.compare(truth, report["lumps"], scene.tissue.size_mm)
 
 
 def row(name: str, report: dict, m: dict) -> str:

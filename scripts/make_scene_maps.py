@@ -11,7 +11,10 @@ relative measurement noise where a real map would have one:
   its top: no sharp edge anywhere;
 - elongated-lump.csv: an elongated lump, 12 × 5 mm semi-axes at 30°, 6.7× the tissue;
 - narrow-lump.csv: a narrower one with a sharper edge, 10 × 4 mm at −50°, 4× the tissue (read along
-  its axis it looks like a row of three circles).
+  its axis it looks like a row of three circles);
+- textured-half.csv: an 80 × 40 mm tissue whose left part is 2.5× stiffer, the region running past three
+  of the tissue's edges, its boundary a slanted line with a ~8 mm wide rise, and 5 % texture (the
+  tissue's own spot-to-spot variation, as a real phantom's map has it) on a 2 mm grid.
 """
 from __future__ import annotations
 
@@ -24,9 +27,8 @@ OUT = Path(__file__).resolve().parent.parent / "config" / "scenes" / "maps"
 TISSUE = 0.12
 
 
-def grid(step_mm: float) -> np.ndarray:
-    axis = np.arange(-30.0, 30.0 + 1e-9, step_mm)
-    gx, gy = np.meshgrid(axis, axis)
+def grid(step_mm: float, half_mm=(30.0, 30.0)) -> np.ndarray:
+    gx, gy = np.meshgrid(*(np.arange(-h, h + 1e-9, step_mm) for h in half_mm))
     return np.column_stack([gx.ravel(), gy.ravel()])
 
 
@@ -54,6 +56,11 @@ def narrow_lump(xy: np.ndarray) -> np.ndarray:
     return TISSUE + (0.48 - TISSUE) / (1.0 + np.exp((rho - 1.0) / 0.08))  # edge 0.3-0.8 mm wide
 
 
+def textured_half(xy: np.ndarray) -> np.ndarray:
+    signed = -xy[:, 0] - 5.0 + 0.2 * xy[:, 1]  # > 0 on the stiff side
+    return TISSUE * (1.0 + 1.5 / (1.0 + np.exp(-signed / 2.0)))
+
+
 def write(name: str, xy: np.ndarray, k: np.ndarray) -> None:
     rows = ["x_mm,y_mm,stiffness_n_per_mm"] + [f"{x:.2f},{y:.2f},{v:.5f}" for (x, y), v in zip(xy, k)]
     (OUT / name).write_text("\n".join(rows) + "\n")
@@ -68,6 +75,8 @@ def main() -> None:
     write("gradual-lump.csv", xy, gradual_lump(xy))
     write("elongated-lump.csv", xy, elongated_lump(xy))
     write("narrow-lump.csv", xy, narrow_lump(xy))
+    xy = grid(2.0, (40.0, 20.0))
+    write("textured-half.csv", xy, textured_half(xy) * (1.0 + rng.normal(0.0, 0.05, len(xy))))
 
 
 if __name__ == "__main__":

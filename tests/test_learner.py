@@ -69,7 +69,7 @@ def test_the_simplest_adequate_model_is_chosen_and_pins_the_lumps_within_half_a_
     assert learner.model()["chosen"] == chosen and learner.verdict() == "lumps"
     assert learner.points <= 40
     report = [lump.as_dict() for lump in learner.lumps()]
-    m = metrics.compare([{"center_mm": c, "radius_mm": r} for c, r, *_ in truth], report)
+    m = metrics.compare([{"center_mm": c, "radius_mm": r} for c, r, *_ in truth], report, (60.0, 60.0))
     assert m["lumps_found"] == len(truth) and m["false_lumps"] == 0
     assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5 and m["min_iou"] >= 0.9, m
 

@@ -122,7 +122,12 @@ class LumpMsg(BaseModel):
     edge_sd_mm: Optional[float] = None
     """Where modelled: its standard deviation."""
     boundary_sd_mm: Optional[float] = None
-    """Free-form regions only: the sd of the boundary's position across itself, RMS along it."""
+    """Free-form regions and lumps cut by the tissue's edge: the sd of the boundary's position across itself,
+    RMS along it (on the tissue)."""
+    cut_by_edge: Optional[bool] = None
+    """True for a lump with most of its boundary off the tissue (a stiff region running past its edge): its
+    centre and radius are then the centroid and equal-area radius of its part on the tissue, and an ellipse's
+    axes are not reported (they would be extrapolation)."""
 
 
 class ModelChoice(BaseModel):

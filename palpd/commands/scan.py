@@ -132,6 +132,8 @@ def _lump_line(lump: dict) -> str:
     if "axes_mm" in lump:
         (a, b), (sa, sb) = lump["axes_mm"], lump["axes_sd_mm"]
         text += f", axes {a:.2f} ± {sa:.2f} / {b:.2f} ± {sb:.2f} mm at {lump['angle_deg']:.1f}°"
+    if lump.get("cut_by_edge"):
+        text += f"; the tissue's edge cuts it: its part on the tissue, boundary ± {lump['boundary_sd_mm']:.2f} mm"
     if "edge_mm" in lump:
         text += f", edge {lump['edge_mm']:.2f} mm"
     return text

@@ -30,10 +30,10 @@ def moments(fit, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return f, ((jac @ fit.cov) * jac).sum(axis=1), jac
 
 
-def boundary_gain(fit, xy: np.ndarray, noise_var: float) -> np.ndarray:
+def boundary_gain(fit, xy: np.ndarray, noise_var: float, size_mm=None) -> np.ndarray:
     """Total variance (mm²) taken off the reported centres and radii by one reading at each cell."""
     _, var, jac = moments(fit, xy)
-    w = quantities(fit)
+    w = quantities(fit, size_mm)
     if len(w) == 0:
         return np.zeros(len(xy))
     projected = jac @ (fit.cov @ w.T)  # (cells × quantities): cov(quantity, reading)

@@ -3,7 +3,15 @@
 Centre, radius (an ellipse's equal-area radius, plus its axes and angle), edge
 width and their standard deviations come from the Laplace covariance through
 the Jacobian of each reported quantity; the boundary is the lump's 50 % contour
-(or, with a supervised τ, its contour at τ).
+(or, with a supervised τ, its contour at τ), on the tissue.
+
+A lump with most of its boundary off the tissue (a stiff region running past
+the tissue's edge, as a measured map may have) is reported by its part on the
+tissue: that part's centroid and equal-area radius, and the sd of its boundary
+there, which is what readings on the tissue pin down. The whole shape's centre
+and axes would be extrapolation: a stiff half of an 80 × 40 mm tissue fitted as
+an ellipse centred 6 mm off the half's centroid with axes of 40 and 113 mm,
+their sds never within any tolerance, and a boundary mostly where no tissue is.
 """
 from __future__ import annotations
 
@@ -15,26 +23,121 @@ from palpd.estimate import LumpEstimate
 from palpd.learner import shapes
 from palpd.learner.evidence import Fit
 
-def lumps_of(fit: Fit, tau_n_per_mm: float | None = None) -> list[LumpEstimate]:
+MOSTLY_OFF = 0.5  # a lump with less than this share of its boundary on the tissue is reported by its part there
+STEP = 1e-5  # central-difference step on a lump's shape parameters (centre in mm; log radius and stretch)
+CUT_VERTICES = 360  # a cut lump's boundary: its part on the tissue may be a short arc of a large shape
+
+
+def lumps_of(fit: Fit, tau_n_per_mm: float | None = None, size_mm=None) -> list[LumpEstimate]:
+    """Each lump of a parametric fit as reported; with the tissue's size, on the tissue (see above)."""
+    half = None if size_mm is None else np.asarray(size_mm, dtype=float) / 2.0
     out = []
     for j in range(fit.family.k):
         part = fit.family.lump_slice(j)
         scale = 1.0 if tau_n_per_mm is None else _level_scale(fit, part, tau_n_per_mm)
         if scale is not None:
-            out.append(_one(fit.theta[part], fit.cov[part, part], fit.family.kind == "ellipses", scale))
+            out.append(_one(fit.theta[part], fit.cov[part, part], fit.family.kind == "ellipses", scale, half))
     return out
 
 
-def quantities(fit: Fit) -> np.ndarray:
-    """Rows of the Jacobian of every reported centre coordinate and radius (or axis) w.r.t. θ."""
+def quantities(fit: Fit, size_mm=None) -> np.ndarray:
+    """Rows of the Jacobian of every reported centre coordinate and radius (or axis) w.r.t. θ (with the tissue's
+    size, a lump mostly off it by its part on it)."""
+    half = None if size_mm is None else np.asarray(size_mm, dtype=float) / 2.0
+    ellipse = fit.family.kind == "ellipses"
     rows = []
     for j in range(fit.family.k):
         part = fit.family.lump_slice(j)
-        for local in _local_rows(fit.theta[part], fit.family.kind == "ellipses"):
+        params = fit.theta[part]
+        cut = half is not None and mostly_off(_polygon(params, ellipse), half)
+        for local in (_tissue_part_rows(params, ellipse, 1.0, half) if cut else _local_rows(params, ellipse)):
             row = np.zeros(fit.family.size)
             row[part] = local
             rows.append(row)
     return np.array(rows).reshape(-1, fit.family.size)
+
+
+def mostly_off(polygon: np.ndarray, half: np.ndarray) -> bool:
+    """Less than MOSTLY_OFF of the closed polygon's length lies on the tissue (|x|, |y| within half its size)."""
+    mid, ds = 0.5 * (polygon[:-1] + polygon[1:]), np.hypot(*(polygon[1:] - polygon[:-1]).T)
+    on = np.all(np.abs(mid) <= half, axis=1)
+    return bool(ds[on].sum() < MOSTLY_OFF * ds.sum())
+
+
+def clip_to_tissue(polygon: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """A closed convex polygon's part on the tissue (Sutherland–Hodgman against its four sides), closed;
+    empty if none of it is on the tissue."""
+    points = polygon[:-1]
+    for axis in (0, 1):
+        for sign in (1.0, -1.0):
+            if len(points) == 0:
+                return points
+            inside = sign * points[:, axis] <= half[axis]
+            after, after_inside = np.roll(points, -1, axis=0), np.roll(inside, -1)
+            crosses = inside != after_inside
+            step = after[:, axis] - points[:, axis]
+            t = np.where(crosses, (sign * half[axis] - points[:, axis]) / np.where(crosses, step, 1.0), 0.0)
+            crossing = points + t[:, None] * (after - points)
+            # each vertex kept if inside, then where its side crosses the line: the clipped polygon in order
+            points = np.stack([points, crossing], axis=1)[np.stack([inside, crosses], axis=1)]
+    return np.vstack([points, points[:1]]) if len(points) else points
+
+
+def _polygon(params: np.ndarray, ellipse: bool, scale: float = 1.0, vertices: int = 72) -> np.ndarray:
+    polygon = shapes.boundary_polygon(params, ellipse, vertices)
+    return params[:2] + (polygon - params[:2]) * scale
+
+
+def _tissue_part(params: np.ndarray, ellipse: bool, scale: float, half: np.ndarray) -> np.ndarray:
+    """[centroid x, centroid y, equal-area radius] of the lump's part on the tissue (zeros if it has none)."""
+    part = clip_to_tissue(_polygon(params, ellipse, scale, CUT_VERTICES), half)
+    if len(part) < 4:
+        return np.zeros(3)
+    x, y, x1, y1 = part[:-1, 0], part[:-1, 1], part[1:, 0], part[1:, 1]
+    cross = x * y1 - x1 * y
+    area = 0.5 * cross.sum()
+    if abs(area) < shapes.TINY:
+        return np.zeros(3)
+    return np.array([((x + x1) * cross).sum() / (6.0 * area), ((y + y1) * cross).sum() / (6.0 * area),
+                     math.sqrt(abs(area) / math.pi)])
+
+
+def _shape_params(params: np.ndarray, ellipse: bool) -> range:
+    """The parameters the 50 % boundary depends on: centre, log radius (and an ellipse's stretch)."""
+    return range(5 if ellipse else 3)
+
+
+def _tissue_part_rows(params: np.ndarray, ellipse: bool, scale: float, half: np.ndarray) -> np.ndarray:
+    """Jacobian (3 × len(params)) of the part on the tissue's centroid and equal-area radius, by central
+    differences (the clipped part moves smoothly with the shape)."""
+    rows = np.zeros((3, len(params)))
+    for i in _shape_params(params, ellipse):
+        step = np.zeros(len(params))
+        step[i] = STEP
+        rows[:, i] = (_tissue_part(params + step, ellipse, scale, half)
+                      - _tissue_part(params - step, ellipse, scale, half)) / (2.0 * STEP)
+    return rows
+
+
+def _boundary_sd_on_tissue(params: np.ndarray, cov: np.ndarray, ellipse: bool, scale: float,
+                           half: np.ndarray) -> float:
+    """RMS along the boundary's stretch on the tissue of its position's sd across itself."""
+    polygon = _polygon(params, ellipse, scale, CUT_VERTICES)[:-1]
+    tangent = np.roll(polygon, -1, axis=0) - np.roll(polygon, 1, axis=0)
+    length = np.maximum(np.hypot(*tangent.T), shapes.TINY)
+    normal = np.column_stack([tangent[:, 1], -tangent[:, 0]]) / length[:, None]
+    across = np.zeros((len(polygon), len(params)))
+    for i in _shape_params(params, ellipse):
+        step = np.zeros(len(params))
+        step[i] = STEP
+        moved = (_polygon(params + step, ellipse, scale, CUT_VERTICES)[:-1]
+                 - _polygon(params - step, ellipse, scale, CUT_VERTICES)[:-1]) / (2.0 * STEP)
+        across[:, i] = np.sum(moved * normal, axis=1)
+    on = np.all(np.abs(polygon) <= half, axis=1)
+    if not on.any():
+        return math.inf
+    variance = np.einsum("ni,ij,nj->n", across[on], cov, across[on])
+    return math.sqrt(max(float(np.sum(variance * length[on]) / np.sum(length[on])), 0.0))
 
 
 def _local_rows(params: np.ndarray, ellipse: bool) -> list[np.ndarray]:
@@ -56,18 +159,32 @@ def _axes_jacobian(params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return d_major, d_minor
 
 
-def _one(params: np.ndarray, cov: np.ndarray, ellipse: bool, scale: float) -> LumpEstimate:
+def _one(params: np.ndarray, cov: np.ndarray, ellipse: bool, scale: float, half: np.ndarray | None) -> LumpEstimate:
+    polygon = _polygon(params, ellipse, scale)
+    edge, edge_sd = _edge(params, cov)
+    if half is not None and mostly_off(polygon, half) and len(clip_to_tissue(polygon, half)):
+        return _part_on_tissue(params, cov, ellipse, scale, half, edge, edge_sd)
     # The centre's sd is its distance from the truth (RMS over both axes), what `--tolerance-mm` bounds: per
     # axis, a lump the scan stopped on at 0.43 mm was 0.56 mm off (touching-lumps seed 2), as a 2-D error is.
     centre_sd = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
     radius = math.exp(params[2]) * scale
     radius_sd = radius * math.sqrt(max(cov[2, 2], 0.0))
-    polygon = shapes.boundary_polygon(params, ellipse)
-    polygon = params[:2] + (polygon - params[:2]) * scale
+    if half is not None and np.any(np.abs(polygon) > half):
+        polygon = clip_to_tissue(polygon, half)
     extra = _ellipse_extras(params, cov, scale) if ellipse else {}
-    edge, edge_sd = _edge(params, cov)
     return LumpEstimate((float(params[0]), float(params[1])), radius, centre_sd, radius_sd, polygon.tolist(),
                         edge_mm=edge, edge_sd_mm=edge_sd, **extra)
+
+
+def _part_on_tissue(params, cov, ellipse: bool, scale: float, half: np.ndarray, edge: float,
+                    edge_sd: float) -> LumpEstimate:
+    centre_x, centre_y, radius = _tissue_part(params, ellipse, scale, half)
+    rows = _tissue_part_rows(params, ellipse, scale, half)
+    centre_sd = math.sqrt(_sd(rows[0], cov) ** 2 + _sd(rows[1], cov) ** 2)
+    boundary = clip_to_tissue(_polygon(params, ellipse, scale, CUT_VERTICES), half)
+    return LumpEstimate((float(centre_x), float(centre_y)), float(radius), centre_sd, _sd(rows[2], cov),
+                        boundary.tolist(), edge_mm=edge, edge_sd_mm=edge_sd,
+                        boundary_sd_mm=_boundary_sd_on_tissue(params, cov, ellipse, scale, half), cut_by_edge=True)
 
 
 def _sd(row: np.ndarray, cov: np.ndarray) -> float:

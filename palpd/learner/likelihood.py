@@ -17,6 +17,7 @@ from scipy.special import log_ndtr
 from palpd.learner.observations import AT_LEAST, AT_MOST, EXACT
 
 LOG_2PI = math.log(2.0 * math.pi)
+MEDIAN_OVER_MEAN_CHI2 = 0.4549  # the median of χ² with one degree of freedom (its mean is 1)
 
 
 def residuals(f: np.ndarray, jac: np.ndarray | None, y: np.ndarray, sd: np.ndarray, kind: np.ndarray,
@@ -66,4 +67,23 @@ def noise_sd_ml(error: np.ndarray, sd: np.ndarray, floor: float) -> float:
     return math.sqrt(var)
 
 
-__all__ = ["AT_LEAST", "AT_MOST", "EXACT", "log_likelihood", "noise_sd_ml", "residuals"]
+def neighbour_scatter(xy: np.ndarray, error: np.ndarray, sd: np.ndarray) -> tuple[float, int]:
+    """How much neighbouring readings' errors differ beyond their own sds: the nugget of the errors'
+    variogram, (sd, pairs it rests on), from each reading and its nearest neighbour.
+
+    Texture (a tissue's own stiffness varying from spot to spot, as a measured map's does) makes
+    neighbours differ as much as the errors scatter overall; a lump a model misses raises the errors
+    of the readings on it together, and their neighbours' differences hardly at all. The median of
+    the pairs' squared differences (over its value for a Gaussian, 0.455 of the mean) keeps the few
+    pairs that straddle an unmodelled edge from counting as texture."""
+    if len(xy) < 2:
+        return 0.0, 0
+    distance = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
+    np.fill_diagonal(distance, np.inf)
+    pairs = np.unique(np.sort(np.column_stack([np.arange(len(xy)), distance.argmin(axis=1)]), axis=1), axis=0)
+    i, j = pairs.T
+    excess = 0.5 * (error[i] - error[j]) ** 2 / MEDIAN_OVER_MEAN_CHI2 - 0.5 * (sd[i] ** 2 + sd[j] ** 2)
+    return math.sqrt(max(float(np.median(excess)), 0.0)), len(pairs)
+
+
+__all__ = ["AT_LEAST", "AT_MOST", "EXACT", "log_likelihood", "neighbour_scatter", "noise_sd_ml", "residuals"]

@@ -44,7 +44,7 @@ PROFILE_SHARPER = (3.0, 9.0)  # edge sharpness factors of the profile's other st
 
 def checked_cov(fit: Fit, obs, priors: Priors) -> np.ndarray:
     """The fit's covariance with its quantity-carrying directions rescaled to the posterior's own ½-nat points."""
-    rows = quantities(fit)
+    rows = quantities(fit, priors.size_mm)
     if len(rows) == 0:
         return fit.cov
     lo, hi = priors.bounds(fit.family)

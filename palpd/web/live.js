@@ -82,9 +82,17 @@ function drawLumps(f) {
     ctx.strokeStyle = "#d0009c"; ctx.lineWidth = 2.5; ctx.beginPath();
     lump.boundary_mm.forEach(([x, y], i) => (i ? ctx.lineTo(f.px(x), f.py(y)) : ctx.moveTo(f.px(x), f.py(y))));
     ctx.closePath(); ctx.stroke();
+    // radius ± 1 sd: the boundary scaled about the centre (an ellipse's, or a lump's part on the tissue, as drawn)
     ctx.setLineDash([5, 4]); ctx.lineWidth = 1;
-    for (const r of [lump.radius_mm - lump.radius_sd_mm, lump.radius_mm + lump.radius_sd_mm]) {
-      if (r > 0) { ctx.beginPath(); ctx.arc(f.px(cx), f.py(cy), r * f.scale, 0, 2 * Math.PI); ctx.stroke(); }
+    const spread = lump.radius_sd_mm / Math.max(lump.radius_mm, 1e-9);
+    for (const scale of [1 - spread, 1 + spread]) {
+      if (scale <= 0) continue;
+      ctx.beginPath();
+      lump.boundary_mm.forEach(([x, y], i) => {
+        const px = f.px(cx + (x - cx) * scale), py = f.py(cy + (y - cy) * scale);
+        if (i) ctx.lineTo(px, py); else ctx.moveTo(px, py);
+      });
+      ctx.closePath(); ctx.stroke();
     }
     ctx.setLineDash([]);
     ctx.fillStyle = "rgba(208,0,156,0.35)"; ctx.beginPath();

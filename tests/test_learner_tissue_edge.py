@@ -1,0 +1,107 @@
+"""Lumps the tissue's edge cuts, and texture (learner/describe.py, likelihood.neighbour_scatter).
+
+A stiff region running past the tissue's edge has no centre or size a palpation on the tissue can pin:
+it is reported by its part on the tissue, with the sds of that part. A tissue's own spot-to-spot
+variation (texture) is what neighbouring readings differ by; a lump a model misses is not.
+"""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from palpd.learner import describe, shapes
+from palpd.learner.evidence import Fit
+from palpd.learner.likelihood import neighbour_scatter
+
+TISSUE_MM = (60.0, 60.0)
+
+
+def fit_of(kind: str, lump: np.ndarray, cov_diag: float = 1e-4) -> Fit:
+    family = shapes.Family(kind, 1, 30.0)
+    theta = np.concatenate([[math.log(0.12), 0.0, 0.0], lump])
+    cov = np.eye(family.size) * cov_diag
+    return Fit(family, theta, cov, 0.01, 0.0, 0.0, True, 40, 0.0)
+
+
+def on_tissue_by_grid(kind: str, lump: np.ndarray, step: float = 0.05) -> tuple[np.ndarray, float]:
+    """Centroid and equal-area radius of the lump's 50 % region within the tissue, counted on a grid."""
+    axis_x = np.arange(-TISSUE_MM[0] / 2, TISSUE_MM[0] / 2, step) + step / 2
+    axis_y = np.arange(-TISSUE_MM[1] / 2, TISSUE_MM[1] / 2, step) + step / 2
+    gx, gy = np.meshgrid(axis_x, axis_y)
+    xy = np.column_stack([gx.ravel(), gy.ravel()])
+    log_rho2, _ = shapes.log_rho2(lump, xy, kind == "ellipses")
+    inside = xy[log_rho2 <= 0.0]
+    return inside.mean(axis=0), math.sqrt(len(inside) * step * step / math.pi)
+
+
+@pytest.mark.parametrize("kind, lump", [
+    ("circles", shapes.make_lump((27.0, 27.0), 20.0, 8.0, 3.0)),  # over a corner: 30 % of it on the tissue
+    ("ellipses", shapes.make_lump((-22.0, 6.0), 40.0, 8.0, 3.0, stretch=(1.2, 0.3))),
+])
+def test_a_lump_mostly_off_the_tissue_is_reported_by_its_part_on_it(kind, lump):
+    assert describe.mostly_off(shapes.boundary_polygon(lump, kind == "ellipses"), np.array(TISSUE_MM) / 2)
+    (whole,) = describe.lumps_of(fit_of(kind, lump))
+    (reported,) = describe.lumps_of(fit_of(kind, lump), size_mm=TISSUE_MM)
+    centre, radius = on_tissue_by_grid(kind, lump)
+    assert reported.cut_by_edge and not whole.cut_by_edge
+    assert reported.center_mm == pytest.approx(centre, abs=0.05)
+    assert reported.radius_mm == pytest.approx(radius, abs=0.05)
+    assert math.dist(whole.center_mm, centre) > 3.0  # the shape's own centre is not where the stiff part is
+    boundary = np.asarray(reported.boundary_mm)
+    assert np.all(np.abs(boundary) <= np.array(TISSUE_MM) / 2 + 1e-9)
+    assert reported.axes_mm is None and reported.boundary_sd_mm is not None
+    assert reported.as_dict()["cut_by_edge"] is True and "cut_by_edge" not in whole.as_dict()
+
+
+def test_a_lump_on_the_tissue_is_reported_as_its_shape_and_one_over_its_edge_clipped_there():
+    inside = shapes.make_lump((-6.0, 5.0), 9.0, 8.0, 3.0)
+    assert describe.lumps_of(fit_of("circles", inside), size_mm=TISSUE_MM) == describe.lumps_of(fit_of("circles",
+                                                                                                     inside))
+    over = shapes.make_lump((26.0, 0.0), 8.0, 8.0, 3.0)  # a quarter of its boundary past x = 30
+    (lump,) = describe.lumps_of(fit_of("circles", over), size_mm=TISSUE_MM)
+    assert not lump.cut_by_edge and lump.center_mm == (26.0, 0.0) and lump.radius_mm == pytest.approx(8.0)
+    assert max(x for x, _ in lump.boundary_mm) == pytest.approx(30.0)
+
+
+def test_the_sds_of_the_part_on_the_tissue_are_those_its_posterior_gives():
+    """Centroid and radius sds through the Jacobian, against sampling the shape from its covariance."""
+    lump = shapes.make_lump((25.0, 25.0), 18.0, 8.0, 3.0)
+    assert describe.mostly_off(shapes.boundary_polygon(lump, False), np.array(TISSUE_MM) / 2)
+    cov_diag = 0.5**2  # mm² on the centre; on log radius a 50 % sd: far from linear, held to 15 %
+    fit = fit_of("circles", lump, cov_diag)
+    fit.cov[5, 5] = 0.05**2
+    (reported,) = describe.lumps_of(fit, size_mm=TISSUE_MM)
+    rng = np.random.default_rng(0)
+    samples = rng.multivariate_normal(fit.theta, fit.cov, 400)
+    parts = np.array([describe._tissue_part(s[3:], False, 1.0, np.array(TISSUE_MM) / 2) for s in samples])
+    centre_sd = math.sqrt(parts[:, 0].var() + parts[:, 1].var())
+    assert reported.center_sd_mm == pytest.approx(centre_sd, rel=0.15)
+    assert reported.radius_sd_mm == pytest.approx(parts[:, 2].std(), rel=0.15)
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(texture=st.floats(0.005, 0.3), own_sd=st.floats(0.0, 0.05), seed=st.integers(0, 1000))
+def test_neighbour_scatter_is_the_texture_and_not_a_lump_missed(texture, own_sd, seed):
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-30.0, 30.0, (60, 2))
+    sd = np.full(60, own_sd)
+    error = rng.normal(0.0, math.hypot(texture, own_sd), 60)
+    scatter, pairs = neighbour_scatter(xy, error, sd)
+    assert pairs >= 20 and scatter == pytest.approx(texture, rel=0.6, abs=0.02)
+    # the same readings, ten of them on a lump no model has (errors 1.2 higher, together)
+    on_lump = np.hypot(*(xy - (10.0, 10.0)).T).argsort()[:10]
+    missed = error.copy()
+    missed[on_lump] += 1.2
+    assert neighbour_scatter(xy, missed, sd)[0] < math.sqrt(np.mean(missed**2)) / 1.5
+
+
+def test_iou_is_judged_on_the_tissue_where_a_size_is_given():
+    """A true disc over the tissue's edge against the same disc clipped to the tissue: the same on the tissue."""
+    from palpd import metrics
+
+    disc = shapes.make_lump((26.0, 0.0), 8.0, 8.0, 3.0)
+    clipped = describe.clip_to_tissue(shapes.boundary_polygon(disc, False, 360), np.array(TISSUE_MM) / 2)
+    true = {"center_mm": [26.0, 0.0], "radius_mm": 8.0}
+    assert metrics.iou(clipped.tolist(), true, TISSUE_MM) > 0.99
+    assert metrics.iou(clipped.tolist(), true) < 0.85
