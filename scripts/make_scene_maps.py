@@ -14,7 +14,8 @@ relative measurement noise where a real map would have one:
   its axis it looks like a row of three circles);
 - textured-half.csv: an 80 × 40 mm tissue whose left part is 2.5× stiffer, the region running past three
   of the tissue's edges, its boundary a slanted line with a ~8 mm wide rise, and 5 % texture (the
-  tissue's own spot-to-spot variation, as a real phantom's map has it) on a 2 mm grid.
+  tissue's own spot-to-spot variation, as a real phantom's map has it) on a 2 mm grid;
+- textured-plain.csv: plain tissue, no lump, with 5 % texture on a 2 mm grid.
 """
 from __future__ import annotations
 
@@ -77,6 +78,8 @@ def main() -> None:
     write("narrow-lump.csv", xy, narrow_lump(xy))
     xy = grid(2.0, (40.0, 20.0))
     write("textured-half.csv", xy, textured_half(xy) * (1.0 + rng.normal(0.0, 0.05, len(xy))))
+    xy = grid(2.0)
+    write("textured-plain.csv", xy, TISSUE * (1.0 + rng.normal(0.0, 0.05, len(xy))))
 
 
 if __name__ == "__main__":

@@ -12,7 +12,7 @@ from hypothesis import given, settings, strategies as st
 
 from palpd.learner import describe, shapes
 from palpd.learner.evidence import Fit
-from palpd.learner.likelihood import neighbour_scatter
+from palpd.learner.likelihood import neighbour_scatter, texture_sd
 
 TISSUE_MM = (60.0, 60.0)
 
@@ -105,3 +105,21 @@ def test_iou_is_judged_on_the_tissue_where_a_size_is_given():
     true = {"center_mm": [26.0, 0.0], "radius_mm": 8.0}
     assert metrics.iou(clipped.tolist(), true, TISSUE_MM) > 0.99
     assert metrics.iou(clipped.tolist(), true) < 0.85
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(texture=st.floats(0.02, 0.3), count=st.integers(20, 120), seed=st.integers(0, 1000))
+def test_texture_accounts_for_a_fit_that_leaves_texture_alone_and_not_for_one_that_misses_a_lump(texture, count,
+                                                                                               seed):
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-30.0, 30.0, (count, 2))
+    sd = np.full(count, 0.004)
+    error = rng.normal(0.0, math.hypot(texture, 0.004), count)
+    sigma_w = math.sqrt(max(np.mean(error**2) - 0.004**2, 0.0))  # what the fit's noise_sd_ml comes to
+    assert texture_sd(xy, error, sd, 9) >= 0.75 * sigma_w
+    assert texture_sd(xy[:8], error[:8], sd[:8], 9) == 0.0  # too few pairs to say
+    # a fifth of the readings on a lump the fit does not have, read across its edge as an active scan does
+    on_lump = np.hypot(*(xy - (5.0, -5.0)).T).argsort()[: count // 5]
+    missed = error.copy()
+    missed[on_lump] += 8.0 * texture
+    assert texture_sd(xy, missed, sd, 9) < math.sqrt(np.mean(missed**2))

@@ -18,7 +18,7 @@ from scipy.special import ndtr
 from palpd.estimate import LumpEstimate
 from palpd.learner import acquisition, coverage, describe, shapes
 from palpd.learner.evidence import ADEQUATE_NOISE, Fit
-from palpd.learner.likelihood import neighbour_scatter
+from palpd.learner.likelihood import texture_sd
 from palpd.learner.lumps import find_lumps
 from palpd.learner.observations import AT_LEAST
 from palpd.learner.threshold import lump_points, surely_above
@@ -279,8 +279,8 @@ class Decision:
         34-40, and no other of 147 table runs changes.
 
         Texture: where neighbouring readings differ from each other as much as the fit's σ_w says they
-        scatter (likelihood.neighbour_scatter), what the fit leaves is the tissue's own spot-to-spot
-        variation, which no model of lumps explains. A stiff half of an 80 x 40 mm map with 5 % texture
+        scatter, and every error alike (likelihood.texture_sd), what the fit leaves is the tissue's own
+        spot-to-spot variation, which no model of lumps explains. A stiff half of an 80 x 40 mm map with 5 % texture
         was fitted at σ_w 3.7-4x the floor by every hypothesis and ended `undetermined` at the budget,
         its boundary at IoU 0.97; a lump a fit misses leaves σ_w 1.5-9x what neighbours differ by
         (four-lumps under `none`)."""
@@ -290,15 +290,15 @@ class Decision:
         return sigma <= ADEQUATE_NOISE * self.noise_floor or sigma <= self._texture_sd()
 
     def _texture_sd(self) -> float:
-        """The chosen fit's errors' neighbour scatter (0 on fewer than MIN_READINGS pairs: a median of
-        a few pairs says nothing)."""
+        """The largest σ_w the tissue's texture accounts for, from the chosen fit's errors
+        (likelihood.texture_sd, on at least MIN_READINGS neighbour pairs)."""
         if "texture" not in self._cache:
             fit, exact = self.chosen_fit(), self.obs.exact
-            scatter, pairs = 0.0, 0
+            texture = 0.0
             if fit is not None:
                 f, _, _ = acquisition.moments(fit, self.obs.xy[exact])
-                scatter, pairs = neighbour_scatter(self.obs.xy[exact], self.obs.y[exact] - f, self.obs.sd[exact])
-            self._cache["texture"] = scatter if pairs >= MIN_READINGS else 0.0
+                texture = texture_sd(self.obs.xy[exact], self.obs.y[exact] - f, self.obs.sd[exact], MIN_READINGS)
+            self._cache["texture"] = texture
         return self._cache["texture"]
 
     def _chosen_noise_sd(self) -> float:

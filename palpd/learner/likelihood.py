@@ -18,6 +18,12 @@ from palpd.learner.observations import AT_LEAST, AT_MOST, EXACT
 
 LOG_2PI = math.log(2.0 * math.pi)
 MEDIAN_OVER_MEAN_CHI2 = 0.4549  # the median of χ² with one degree of freedom (its mean is 1)
+# The relative standard error of an sd estimated from the median of m χ²₁ draws is MEDIAN_SE / √m: the median's
+# variance is 1 / (4 m f²) at the χ²₁ density there, f = 0.4711, i.e. (1.061 / 0.4549)² / m of its value squared,
+# and an sd's relative error is half its variance's.
+MEDIAN_SE = 1.17
+MAD_TO_SD = 1.4826  # a Gaussian's sd over its median absolute deviation
+TYPICAL_SPREAD = 2.0  # texture spreads every error alike: σ_w beyond this multiple of the typical error is a few
 
 
 def residuals(f: np.ndarray, jac: np.ndarray | None, y: np.ndarray, sd: np.ndarray, kind: np.ndarray,
@@ -86,4 +92,19 @@ def neighbour_scatter(xy: np.ndarray, error: np.ndarray, sd: np.ndarray) -> tupl
     return math.sqrt(max(float(np.median(excess)), 0.0)), len(pairs)
 
 
-__all__ = ["AT_LEAST", "AT_MOST", "EXACT", "log_likelihood", "neighbour_scatter", "noise_sd_ml", "residuals"]
+def texture_sd(xy: np.ndarray, error: np.ndarray, sd: np.ndarray, min_pairs: int) -> float:
+    """The largest σ_w the tissue's texture accounts for (0 on fewer than `min_pairs` neighbour pairs: a
+    median of a few says nothing): no more than neighbouring readings differ by, nor than TYPICAL_SPREAD
+    times the typical error (texture spreads every error alike; a lump missed makes a few large, and pairs
+    across its edge can still make neighbours differ), with one standard error of the neighbours' estimate
+    to spare (it and σ_w measure the same spread: held to it exactly, a tissue of texture alone failed half
+    its updates, 10 % texture with no lump ended `undetermined`)."""
+    scatter, pairs = neighbour_scatter(xy, error, sd)
+    if pairs < min_pairs:
+        return 0.0
+    typical = MAD_TO_SD * float(np.median(np.abs(error - np.median(error))))
+    return min(scatter, TYPICAL_SPREAD * typical) * (1.0 + MEDIAN_SE / math.sqrt(pairs))
+
+
+__all__ = ["AT_LEAST", "AT_MOST", "EXACT", "log_likelihood", "neighbour_scatter", "noise_sd_ml", "residuals",
+           "texture_sd"]
