@@ -67,6 +67,19 @@ def test_bad_map_names_file_and_line(tmp_path):
         load_scene(scene_file(tmp_path, 'name = "m"\n[tissue]\nmap = "absent.csv"\n'))
 
 
+@pytest.mark.parametrize("content, message", [
+    (b"\x89PNG\r\n\x1a\n\x00\xff\xfe binary", r"m\.csv: not a CSV text file"),
+    (b"x_mm,y_mm,stiffness_n_per_mm\n0,0,0.1\n1,1,0.1\n2,2,0.2\n3,3,0.1\n", r"m\.csv: the map's points lie on one line"),
+    (b"x_mm,y_mm,stiffness_n_per_mm\n5,5,0.1\n5,5,0.2\n5,5,0.1\n5,5,0.1\n", r"m\.csv: the map's points lie on one line"),
+])
+def test_a_map_that_cannot_be_interpolated_is_one_clear_line_before_the_bench_opens(tmp_path, content, message):
+    """Before, a binary file was a traceback and points on a line a multi-line Qhull error from the bench."""
+    (tmp_path / "m.csv").write_bytes(content)
+    with pytest.raises(SceneError, match=message) as caught:
+        load_scene(scene_file(tmp_path, 'name = "m"\n[tissue]\nmap = "m.csv"\n'))
+    assert "\n" not in str(caught.value)
+
+
 def test_truth_follows_the_tissue_rotation(tmp_path):
     path = scene_file(tmp_path, 'name = "r"\n[placement]\nrotation_deg = 90\n' + LUMP.replace("[0, 0]", "[10, 0]"))
     (truth,) = truth_lumps(load_scene(path))

@@ -109,9 +109,25 @@ def load_stiffness_map(path: str | Path) -> list[tuple[float, float, float]]:
             rows = [_map_row(path, n + 2, row) for n, row in enumerate(reader)]
     except OSError as exc:
         raise SceneError(f"{path}: cannot read stiffness map: {exc.strerror}") from None
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise SceneError(f"{path}: not a CSV text file ({type(exc).__name__})") from None
     if len(rows) < 4:
         raise SceneError(f"{path}: a stiffness map needs at least 4 points, found {len(rows)}")
+    if _on_one_line(rows):
+        raise SceneError(f"{path}: the map's points lie on one line; they must spread over the tissue")
     return rows
+
+
+def _on_one_line(rows: list[tuple[float, float, float]]) -> bool:
+    """No three points of the map span an area (interpolating over the tissue needs a triangle)."""
+    x0, y0, _ = rows[0]
+    far = max(rows, key=lambda r: math.hypot(r[0] - x0, r[1] - y0))
+    dx, dy = far[0] - x0, far[1] - y0
+    length = math.hypot(dx, dy)
+    if length == 0.0:
+        return True
+    # each point's distance from the line through the first point and the one farthest from it
+    return all(abs(dx * (y - y0) - dy * (x - x0)) <= 1e-9 * length * length for x, y, _ in rows)
 
 
 def _map_row(path: Path, line: int, row: dict) -> tuple[float, float, float]:
