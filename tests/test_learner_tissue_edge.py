@@ -123,3 +123,13 @@ def test_texture_accounts_for_a_fit_that_leaves_texture_alone_and_not_for_one_th
     missed = error.copy()
     missed[on_lump] += 8.0 * texture
     assert texture_sd(xy, missed, sd, 9) < math.sqrt(np.mean(missed**2))
+
+
+def test_neighbour_scatter_pairs_each_reading_with_its_nearest_other_one_even_where_one_spot_is_read_twice():
+    xy = np.array([[0.0, 0.0], [0.0, 0.0], [10.0, 0.0], [10.5, 0.0], [30.0, 30.0]])
+    error = np.array([0.1, 0.3, 0.0, 0.0, 0.0])
+    scatter, pairs = neighbour_scatter(xy, error, np.zeros(5))
+    # pairs: (0, 1) once, (2, 3) once, (4, 3): the repeated spot's two readings differ by 0.2
+    assert pairs == 3
+    assert scatter == pytest.approx(0.0)  # the median of (0.02, 0, 0) / 0.4549
+    assert neighbour_scatter(xy[:2], error[:2], np.zeros(2)) == (pytest.approx(math.sqrt(0.02 / 0.4549)), 1)

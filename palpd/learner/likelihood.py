@@ -84,12 +84,15 @@ def neighbour_scatter(xy: np.ndarray, error: np.ndarray, sd: np.ndarray) -> tupl
     pairs that straddle an unmodelled edge from counting as texture."""
     if len(xy) < 2:
         return 0.0, 0
-    distance = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1])
-    np.fill_diagonal(distance, np.inf)
-    pairs = np.unique(np.sort(np.column_stack([np.arange(len(xy)), distance.argmin(axis=1)]), axis=1), axis=0)
-    i, j = pairs.T
+    from scipy.spatial import cKDTree  # loaded with scipy.optimize already; O(n log n), not an n x n matrix
+
+    i = np.arange(len(xy))
+    two = cKDTree(xy).query(xy, k=2)[1]
+    nearest = np.where(two[:, 1] == i, two[:, 0], two[:, 1])  # a reading repeated at one spot: not itself
+    once = (i < nearest) | (nearest[nearest] != i)  # a pair of mutual nearest neighbours counts once
+    i, j = i[once], nearest[once]
     excess = 0.5 * (error[i] - error[j]) ** 2 / MEDIAN_OVER_MEAN_CHI2 - 0.5 * (sd[i] ** 2 + sd[j] ** 2)
-    return math.sqrt(max(float(np.median(excess)), 0.0)), len(pairs)
+    return math.sqrt(max(float(np.median(excess)), 0.0)), len(i)
 
 
 def texture_sd(xy: np.ndarray, error: np.ndarray, sd: np.ndarray, min_pairs: int) -> float:
