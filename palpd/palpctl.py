@@ -137,7 +137,8 @@ def plot(reply, path: str) -> str:
     estimate = reply.estimate
     report = {"session": reply.session, "strategy": "", "palpations": len(reply.probes),
               "probes": [p.model_dump(mode="json") for p in reply.probes],
-              "lumps": [l.model_dump(mode="json") for l in estimate.lumps] if estimate else []}
+              "lumps": [l.model_dump(mode="json") for l in estimate.lumps] if estimate else [],
+              "model": estimate.model.model_dump(mode="json") if estimate and estimate.model else None}
     plot_scan(report, reply.tissue_size_mm, path, reply.map.model_dump() if reply.map else None)
     return path
 

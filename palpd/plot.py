@@ -139,7 +139,8 @@ def _title(report: dict) -> str:
     title = f"{source} — {report.get('strategy') or 'scan'}, {report['palpations']} palpations"
     model = report.get("model")
     if model:
-        title += f", {report.get('verdict', '')}: {model['chosen']} (weight {model['weight']:.2f})"
+        said = f"{report['verdict']}: " if report.get("verdict") else "model "  # a live estimate has no verdict yet
+        title += f", {said}{model['chosen']} (weight {model['weight']:.2f})"
     metrics = report.get("metrics")
     if metrics and metrics.get("max_center_error_mm") is not None:
         title += f"\ncentre error {metrics['max_center_error_mm']:.2f} mm, radius error {metrics['max_radius_error_mm']:.2f} mm"
