@@ -284,10 +284,10 @@ class Decision:
 
         Texture: where neighbouring readings differ from each other as much as the fit's σ_w says they
         scatter, and every error alike (likelihood.texture_sd), what the fit leaves is the tissue's own
-        spot-to-spot variation, which no model of lumps explains. A stiff half of an 80 x 40 mm map with 5 % texture
-        was fitted at σ_w 3.7-4x the floor by every hypothesis and ended `undetermined` at the budget,
-        its boundary at IoU 0.97; a lump a fit misses leaves σ_w 1.5-9x what neighbours differ by
-        (four-lumps under `none`)."""
+        spot-to-spot variation, which no model of lumps explains. A stiff half of an 80 x 40 mm map with
+        5 % texture was fitted at σ_w 3.7-4x the floor by every hypothesis and ended `undetermined` at the
+        budget, its boundary at IoU 0.97; `none` over four lumps left 1.3-5.3x what texture accounts for
+        wherever it was confident (docs/learner.md, rule 2)."""
         if self.choice.chosen == "free-form":
             return True
         sigma = self._chosen_noise_sd()
@@ -382,8 +382,8 @@ class Decision:
             # where to probe by the Laplace covariance: its widest directions are where the posterior
             # is still unexplored (checked, they are narrow only along the line that was looked at)
             laplace = self.hypotheses.laplace(self.choice.chosen)
-            score[near] = acquisition.boundary_gain(laplace, xy[near], self._noise_var(), self.size_mm) * self._readable(laplace,
-                                                                                                           xy[near])
+            gain = acquisition.boundary_gain(laplace, xy[near], self._noise_var(), self.size_mm)
+            score[near] = gain * self._readable(laplace, xy[near])
             return score
         tau = np.log(self.free_form_map().tau).ravel()[cells]
         return acquisition.straddle(self.gp.mean[cells], self.gp.std()[cells], tau, self.settings.confidence)
