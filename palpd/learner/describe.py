@@ -49,8 +49,7 @@ def quantities(fit: Fit, size_mm=None) -> np.ndarray:
     for j in range(fit.family.k):
         part = fit.family.lump_slice(j)
         params = fit.theta[part]
-        cut = half is not None and not _wholly_on(params, ellipse, 1.0, half) and mostly_off(_polygon(params, ellipse),
-                                                                                          half)
+        cut = _cut(params, ellipse, 1.0, half)
         for local in (_tissue_part_rows(params, ellipse, 1.0, half) if cut else _local_rows(params, ellipse)):
             row = np.zeros(fit.family.size)
             row[part] = local
@@ -82,6 +81,14 @@ def clip_to_tissue(polygon: np.ndarray, half: np.ndarray) -> np.ndarray:
             # each vertex kept if inside, then where its side crosses the line: the clipped polygon in order
             points = np.stack([points, crossing], axis=1)[np.stack([inside, crosses], axis=1)]
     return np.vstack([points, points[:1]]) if len(points) else points
+
+
+def _cut(params: np.ndarray, ellipse: bool, scale: float, half: np.ndarray | None) -> bool:
+    """Reported by its part on the tissue: most of its boundary lies off the tissue, and some on it."""
+    if half is None or _wholly_on(params, ellipse, scale, half):
+        return False
+    polygon = _polygon(params, ellipse, scale)
+    return mostly_off(polygon, half) and len(clip_to_tissue(polygon, half)) > 0
 
 
 def _wholly_on(params: np.ndarray, ellipse: bool, scale: float, half: np.ndarray) -> bool:
@@ -168,17 +175,16 @@ def _axes_jacobian(params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _one(params: np.ndarray, cov: np.ndarray, ellipse: bool, scale: float, half: np.ndarray | None) -> LumpEstimate:
-    polygon = _polygon(params, ellipse, scale)
     edge, edge_sd = _edge(params, cov)
-    on = half is None or _wholly_on(params, ellipse, scale, half)
-    if not on and mostly_off(polygon, half) and len(clip_to_tissue(polygon, half)):
+    if _cut(params, ellipse, scale, half):
         return _part_on_tissue(params, cov, ellipse, scale, half, edge, edge_sd)
     # The centre's sd is its distance from the truth (RMS over both axes), what `--tolerance-mm` bounds: per
     # axis, a lump the scan stopped on at 0.43 mm was 0.56 mm off (touching-lumps seed 2), as a 2-D error is.
     centre_sd = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
     radius = math.exp(params[2]) * scale
     radius_sd = radius * math.sqrt(max(cov[2, 2], 0.0))
-    if not on and np.any(np.abs(polygon) > half):
+    polygon = _polygon(params, ellipse, scale)
+    if half is not None and not _wholly_on(params, ellipse, scale, half):
         polygon = clip_to_tissue(polygon, half)
     extra = _ellipse_extras(params, cov, scale) if ellipse else {}
     return LumpEstimate((float(params[0]), float(params[1])), radius, centre_sd, radius_sd, polygon.tolist(),
