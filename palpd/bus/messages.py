@@ -127,7 +127,8 @@ class LumpMsg(BaseModel):
     cut_by_edge: Optional[bool] = None
     """True for a lump with most of its boundary off the tissue (a stiff region running past its edge): its
     centre and radius are then the centroid and equal-area radius of its part on the tissue, and an ellipse's
-    axes are not reported (they would be extrapolation)."""
+    axes and angle are the whole shape's, as fitted, and held to no tolerance (mostly off the tissue, no
+    reading pins them)."""
 
 
 class ModelChoice(BaseModel):

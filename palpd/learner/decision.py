@@ -431,8 +431,9 @@ def _discs(fit: Fit | None) -> list[tuple[np.ndarray, float]]:
 
 def _sds(lump: LumpEstimate) -> float:
     """The largest sd of what is reported: centre, radius, axes, and for a free-form region or a lump cut by the
-    tissue's edge its boundary."""
-    sds = [lump.center_sd_mm, lump.radius_sd_mm, *(lump.axes_sd_mm or ())]
+    tissue's edge its boundary (such a lump's axes are the whole shape's, mostly off the tissue: none pinned)."""
+    axes = () if lump.cut_by_edge else (lump.axes_sd_mm or ())
+    sds = [lump.center_sd_mm, lump.radius_sd_mm, *axes]
     if lump.boundary_sd_mm is not None:
         sds.append(lump.boundary_sd_mm)
     return max(sds)

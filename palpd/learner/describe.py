@@ -8,8 +8,9 @@ the Jacobian of each reported quantity; the boundary is the lump's 50 % contour
 A lump with most of its boundary off the tissue (a stiff region running past
 the tissue's edge, as a measured map may have) is reported by its part on the
 tissue: that part's centroid and equal-area radius, and the sd of its boundary
-there, which is what readings on the tissue pin down. The whole shape's centre
-and axes would be extrapolation: a stiff half of an 80 × 40 mm tissue fitted as
+there, which is what readings on the tissue pin down (an ellipse's axes and
+angle are still the whole shape's, as fitted, and the stop rule does not hold
+them to the tolerance). The whole shape's centre and size are extrapolation: a stiff half of an 80 × 40 mm tissue fitted as
 an ellipse centred 6 mm off the half's centroid with axes of 40 and 113 mm,
 their sds never within any tolerance, and a boundary mostly where no tissue is.
 """
@@ -197,9 +198,12 @@ def _part_on_tissue(params, cov, ellipse: bool, scale: float, half: np.ndarray, 
     rows = _tissue_part_rows(params, ellipse, scale, half)
     centre_sd = math.sqrt(_sd(rows[0], cov) ** 2 + _sd(rows[1], cov) ** 2)
     boundary = clip_to_tissue(_polygon(params, ellipse, scale, CUT_VERTICES), half)
+    # an ellipse keeps its axes and angle (the shape fitted, DESIGN.md's report), held to no tolerance (_sds)
+    extra = _ellipse_extras(params, cov, scale) if ellipse else {}
     return LumpEstimate((float(centre_x), float(centre_y)), float(radius), centre_sd, _sd(rows[2], cov),
                         boundary.tolist(), edge_mm=edge, edge_sd_mm=edge_sd,
-                        boundary_sd_mm=_boundary_sd_on_tissue(params, cov, ellipse, scale, half), cut_by_edge=True)
+                        boundary_sd_mm=_boundary_sd_on_tissue(params, cov, ellipse, scale, half), cut_by_edge=True,
+                        **extra)
 
 
 def _sd(row: np.ndarray, cov: np.ndarray) -> float:
