@@ -129,11 +129,12 @@ def _verdict_line(report: dict) -> str:
 def _lump_line(lump: dict) -> str:
     (x, y), r = lump["center_mm"], lump["radius_mm"]
     text = f"centre ({x:.2f}, {y:.2f}) ± {lump['center_sd_mm']:.2f} mm, radius {r:.2f} ± {lump['radius_sd_mm']:.2f} mm"
+    if lump.get("cut_by_edge"):  # centre and radius of its part on the tissue; its axes are the whole shape's
+        text += f" (its part on the tissue, whose edge cuts it: boundary ± {lump['boundary_sd_mm']:.2f} mm)"
     if "axes_mm" in lump:
         (a, b), (sa, sb) = lump["axes_mm"], lump["axes_sd_mm"]
-        text += f", axes {a:.2f} ± {sa:.2f} / {b:.2f} ± {sb:.2f} mm at {lump['angle_deg']:.1f}°"
-    if lump.get("cut_by_edge"):
-        text += f"; the tissue's edge cuts it: its part on the tissue, boundary ± {lump['boundary_sd_mm']:.2f} mm"
+        whole = "whole shape's axes" if lump.get("cut_by_edge") else "axes"
+        text += f", {whole} {a:.2f} ± {sa:.2f} / {b:.2f} ± {sb:.2f} mm at {lump['angle_deg']:.1f}°"
     if "edge_mm" in lump:
         text += f", edge {lump['edge_mm']:.2f} mm"
     return text
