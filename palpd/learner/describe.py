@@ -186,7 +186,8 @@ def _one(params: np.ndarray, cov: np.ndarray, ellipse: bool, scale: float, half:
     radius_sd = radius * math.sqrt(max(cov[2, 2], 0.0))
     polygon = _polygon(params, ellipse, scale)
     if half is not None and not _wholly_on(params, ellipse, scale, half):
-        polygon = clip_to_tissue(polygon, half)
+        on_tissue = clip_to_tissue(polygon, half)
+        polygon = on_tissue if len(on_tissue) >= 4 else polygon  # a shape wholly off the tissue stays as fitted
     extra = _ellipse_extras(params, cov, scale) if ellipse else {}
     return LumpEstimate((float(params[0]), float(params[1])), radius, centre_sd, radius_sd, polygon.tolist(),
                         edge_mm=edge, edge_sd_mm=edge_sd, **extra)
