@@ -300,7 +300,7 @@ class Decision:
             fit, exact = self.chosen_fit(), self.obs.exact
             texture = 0.0
             if fit is not None:
-                f, _, _ = acquisition.moments(fit, self.obs.xy[exact])
+                f, _ = shapes.evaluate(fit.family, fit.theta, self.obs.xy[exact], jacobian=False)
                 texture = texture_sd(self.obs.xy[exact], self.obs.y[exact] - f, self.obs.sd[exact], MIN_READINGS)
             self._cache["texture"] = texture
         return self._cache["texture"]
