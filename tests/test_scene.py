@@ -80,6 +80,25 @@ def test_a_map_that_cannot_be_interpolated_is_one_clear_line_before_the_bench_op
     assert "\n" not in str(caught.value)
 
 
+@pytest.mark.parametrize("offset, scale", [(30.0, 1.0), (0.0, 0.001)], ids=["from-its-corner", "in-metres"])
+def test_a_map_in_another_frame_or_unit_is_refused_with_its_extent(tmp_path, offset, scale):
+    """A grid recorded from its corner (0..60 mm) or in metres covered a quarter of the tissue, or a speck of it,
+    and the rest was its edge values stretched out: a scene nobody measured, run without a word."""
+    rows = ["x_mm,y_mm,stiffness_n_per_mm"] + [f"{(x + offset) * scale},{(y + offset) * scale},0.1"
+                                               for x in range(-30, 31, 10) for y in range(-30, 31, 10)]
+    (tmp_path / "m.csv").write_text("\n".join(rows) + "\n")
+    with pytest.raises(SceneError, match=r"m\.csv: the map spans x .* of the tissue \(x within ±30, y within ±30 mm") as caught:
+        load_scene(scene_file(tmp_path, 'name = "m"\n[tissue]\nmap = "m.csv"\n'))
+    assert "\n" not in str(caught.value)
+
+
+def test_a_spreadsheet_export_with_a_byte_order_mark_and_spaced_header_is_read(tmp_path):
+    rows = ["\ufeffx_mm, y_mm, stiffness_n_per_mm"] + [f"{x},{y},0.1" for x in range(-30, 31, 10) for y in range(-30, 31, 10)]
+    (tmp_path / "m.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
+    field = StiffnessField(load_scene(scene_file(tmp_path, 'name = "m"\n[tissue]\nmap = "m.csv"\n')))
+    assert field.k_at(3.0, -7.0) == pytest.approx(0.1, abs=1e-6)
+
+
 def test_truth_follows_the_tissue_rotation(tmp_path):
     path = scene_file(tmp_path, 'name = "r"\n[placement]\nrotation_deg = 90\n' + LUMP.replace("[0, 0]", "[10, 0]"))
     (truth,) = truth_lumps(load_scene(path))

@@ -92,7 +92,8 @@ def load_scene(path: str | Path) -> Scene:
         raise SceneError(describe_validation_error(str(path), exc)) from None
     if scene.tissue.map is not None:
         map_path = (path.parent / scene.tissue.map)
-        load_stiffness_map(map_path)  # validated now, so a bad map fails before the robot moves
+        rows = load_stiffness_map(map_path)  # validated now, so a bad map fails before the robot moves
+        _check_map_covers_tissue(map_path, rows, scene.tissue.size_mm)
         scene = scene.model_copy(update={"tissue": scene.tissue.model_copy(update={"map": str(map_path)})})
     return scene
 
@@ -101,8 +102,10 @@ def load_stiffness_map(path: str | Path) -> list[tuple[float, float, float]]:
     """Rows (x_mm, y_mm, stiffness_n_per_mm) of a measured map CSV."""
     path = Path(path)
     try:
-        with path.open(newline="") as handle:
+        # utf-8-sig: a spreadsheet's CSV export starts with a byte-order mark, which would hide the first column
+        with path.open(newline="", encoding="utf-8-sig") as handle:
             reader = csv.DictReader(handle)
+            reader.fieldnames = [name.strip() for name in reader.fieldnames or []]
             missing = {"x_mm", "y_mm", "stiffness_n_per_mm"} - set(reader.fieldnames or [])
             if missing:
                 raise SceneError(f"{path}: missing column(s) {', '.join(sorted(missing))}")
@@ -116,6 +119,24 @@ def load_stiffness_map(path: str | Path) -> list[tuple[float, float, float]]:
     if _on_one_line(rows):
         raise SceneError(f"{path}: the map's points lie on one line; they must spread over the tissue")
     return rows
+
+
+MIN_MAP_COVER = 0.5  # of the tissue's area: a map over less is most likely in another frame or unit
+
+
+def _check_map_covers_tissue(path: Path, rows: list[tuple[float, float, float]], size_mm) -> None:
+    """The map's extent overlaps at least MIN_MAP_COVER of the tissue, which is centred on (0, 0) in mm: a grid
+    recorded from its corner (0..60 mm) or in metres would otherwise be stretched from its edge values over
+    the rest of the tissue, a scene nobody measured."""
+    xs, ys = [r[0] for r in rows], [r[1] for r in rows]
+    half_w, half_h = size_mm[0] / 2.0, size_mm[1] / 2.0
+    overlap_w = max(0.0, min(max(xs), half_w) - max(min(xs), -half_w))
+    overlap_h = max(0.0, min(max(ys), half_h) - max(min(ys), -half_h))
+    cover = overlap_w * overlap_h / (size_mm[0] * size_mm[1])
+    if cover < MIN_MAP_COVER:
+        raise SceneError(f"{path}: the map spans x {min(xs):g} to {max(xs):g}, y {min(ys):g} to {max(ys):g} mm, "
+                         f"{100.0 * cover:.0f} % of the tissue (x within ±{half_w:g}, y within ±{half_h:g} mm, "
+                         f"centred on 0, 0): shift its points to the tissue's frame, in mm, or set [tissue] size_mm")
 
 
 def _on_one_line(rows: list[tuple[float, float, float]]) -> bool:
