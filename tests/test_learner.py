@@ -147,6 +147,23 @@ def test_a_sharp_10_mm_lump_in_the_covering_lattice_s_deepest_hole_is_found():
     assert m["lumps_found"] == 1 and m["false_lumps"] == 0, m
 
 
+TOUCHING = [((-8.0, 0.0), 5.0, 2.0, 0.8), ((4.0, 0.0), 5.0, 2.0, 0.8), ((-1.0, 13.5), 5.0, 2.0, 0.8)]
+
+
+@pytest.mark.parametrize("satellite_reach, found", [(1.5, 3), (0.0, 2)], ids=["default", "off"])
+def test_beside_two_lumps_found_a_third_nearly_touching_them_is_looked_for(satellite_reach, found):
+    """touching-lumps' three sharp 5 mm lumps, edges 2-4 mm apart: the tissue-wide coverage (holes of up to 18 mm
+    between readings) stopped on the two at the bottom, the third never read (8.5 mm from the nearest reading);
+    looking closer beside lumps found together (`satellite_reach`) finds it. Off, the old answer: two."""
+    learner = learn(field(TOUCHING), seed=5, satellite_reach=satellite_reach)
+    assert_sane(learner, TOUCHING)
+    m = metrics.compare([{"center_mm": c, "radius_mm": r} for c, r, *_ in TOUCHING], [l.as_dict() for l in learner.lumps()])
+    assert learner.verdict() == "lumps" and m["lumps_found"] == found and m["false_lumps"] == 0, m
+    assert learner.points <= 40
+    if found == 3:
+        assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5 and m["min_iou"] >= 0.9, m
+
+
 def test_no_evidence_is_never_none_but_undetermined_when_the_budget_runs_out():
     learner = Learner((60.0, 60.0), LearnerSettings(grid_points=41), 0.3, 0)
     for _ in range(12):

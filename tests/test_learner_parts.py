@@ -616,3 +616,28 @@ def test_one_ellipse_over_a_lump_and_a_neighbours_edge_is_read_where_two_circles
     assert first is not None
     assert found["lumps_found"] == 2 and found["false_lumps"] == 0, found
     assert found["max_center_error_mm"] <= 0.5 and found["min_iou"] >= 0.9, found
+
+
+def test_a_satellite_hole_is_the_widest_gap_beside_the_lumps_and_none_once_read_closely():
+    """coverage.satellite_hole: cells outside the lumps within 3 radii of one, farther than reach x radius from
+    every reading; the farthest of them first, nothing inside a lump or far from all of them."""
+    from palpd.learner import coverage
+
+    gx, gy = np.meshgrid(np.arange(-30.0, 31.0, 2.0), np.arange(-30.0, 31.0, 2.0))
+    discs = [(np.array([-8.0, 0.0]), 5.0), (np.array([4.0, 0.0]), 5.0)]
+
+    def read(points):
+        readings = coverage.Readings(np.column_stack([gx.ravel(), gy.ravel()]), 1.5)
+        for xy in points:
+            readings.add(xy)
+        return readings
+
+    centres_and_edges = [(-8, 0), (4, 0), (-14, 0), (10, 0), (-8, 6), (-8, -6), (4, 6), (4, -6), (-2, 0)]
+    hole = coverage.satellite_hole(discs, read(centres_and_edges), 1.5, 1.5)
+    assert hole is not None
+    assert min(np.hypot(*(np.array(centres_and_edges) - hole).T)) > 7.5  # a spot no reading is within 1.5 R of
+    assert min(math.dist(hole, c) for c, _ in discs) <= 15.0  # beside a lump (within 3 R), not across the tissue
+    assert all(math.dist(hole, c) > r for c, r in discs)  # never inside a found lump
+    lattice = [(x, y) for x in np.arange(-30.0, 31.0, 5.0) for y in np.arange(-30.0, 31.0, 5.0)]
+    assert coverage.satellite_hole(discs, read(lattice), 1.5, 1.5) is None  # read 5 mm apart: no hole of 7.5 mm
+    assert coverage.satellite_hole(discs, read(centres_and_edges), 4.0, 1.5) is None  # a reach of 4 R: none

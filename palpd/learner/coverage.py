@@ -25,6 +25,8 @@ CONFIRM_RHO = 0.6
 EDGE_LEVEL = math.log(9.0)  # the edge band: where the lump's profile is between 10 % and 90 % of its height
 MAX_GAP_RAD = 2.0 * math.pi / 3.0  # no third of a turn of edge unread
 OUTSIDE_STEPS = 36
+CLUSTER_LUMPS = 2  # lumps found together, the closer look around them begins (satellite_hole)
+SATELLITE_GAP = 1.0  # a satellite's edge within this many of its neighbour's radii of the neighbour's edge
 
 
 def unconfirmed_centre(fit, readings_xy: np.ndarray, spacing_mm: float) -> np.ndarray | None:
@@ -95,6 +97,30 @@ def hidden_lump_spot(excess: np.ndarray, readings_xy: np.ndarray, readings: "Rea
     joint = (near @ excess) / np.sqrt(np.maximum(count, 1))
     best = int(np.argmax(joint))
     return cells[best] if joint[best] >= JOINT_SIGMA else None
+
+
+def satellite_hole(discs, readings: "Readings", reach: float, spacing_mm: float) -> np.ndarray | None:
+    """The middle of the widest hole between readings beside the found lumps, or None.
+
+    Lumps found together come close together (four-lumps, touching-lumps: edges 2-4 mm apart), and a lump
+    with a sharp edge is felt only by a reading inside it, so the tissue-wide `coverage_mm` (a hole of up to
+    18 mm radius between readings) passed over the third of three touching 5 mm lumps on three seeds of
+    eight, and over a lump 7-9 mm beside two found ones on random scenes. Beside each found lump (radius R:
+    cells outside every found lump within (2 + SATELLITE_GAP)·R of its centre, where the centre of a lump
+    as large lies when its edge is within SATELLITE_GAP·R of this one's), no cell may be farther than
+    reach·R from every reading (never below the probe spacing). The cell farthest from every reading is
+    the middle of the widest such hole."""
+    cells, distance = readings.cells_xy, readings.distance_mm
+    inside = np.zeros(len(cells), dtype=bool)
+    hole = np.zeros(len(cells), dtype=bool)
+    for centre, radius in discs:
+        d = np.hypot(cells[:, 0] - centre[0], cells[:, 1] - centre[1])
+        inside |= d <= radius
+        hole |= (d <= (2.0 + SATELLITE_GAP) * radius) & (distance > max(reach * radius, spacing_mm))
+    hole &= ~inside
+    if not hole.any():
+        return None
+    return cells[np.flatnonzero(hole)[int(np.argmax(distance[hole]))]]
 
 
 def lump_params(fit) -> list[np.ndarray]:

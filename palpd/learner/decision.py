@@ -81,8 +81,9 @@ class Decision:
     def decided(self) -> bool:
         """The stop rule holds: the model choice is confident, no spot of the tissue is unexplored,
         each lump is pinned down by readings (coverage.py), what is reported has posterior sd within
-        the tolerance, and no rival as good a fit could overturn the choice with one reading."""
-        return self._stands() and self._decisive_spot() is None
+        the tolerance, no hole beside lumps found together could hide another, and no rival as good a
+        fit could overturn the choice with one reading."""
+        return self._stands() and self._satellite_hole() is None and self._decisive_spot() is None
 
     def _stands(self) -> bool:
         """The stop rule holds but for the one reading a rival may still ask for (`_decisive_spot`,
@@ -129,6 +130,17 @@ class Decision:
         if self.choice is not None and self.choice.chosen == "none":
             reach = min(reach, self.settings.none_coverage_mm)
         return self.coverage.farthest_beyond(reach)
+
+    def _satellite_hole(self) -> np.ndarray | None:
+        """Once the chosen model has CLUSTER_LUMPS lumps or more: the middle of the widest hole between readings
+        beside them wider than `satellite_reach` of a lump's radius (coverage.satellite_hole), or None. A
+        single lump is left to `coverage_mm`: a closer look around every lump would cost most scans 5-10
+        palpations (the median is a single-lump scan)."""
+        if "satellite" not in self._cache:
+            fit, reach = self.chosen_fit(), self.settings.satellite_reach
+            self._cache["satellite"] = None if fit is None or fit.family.k < coverage.CLUSTER_LUMPS or reach <= 0 \
+                else coverage.satellite_hole(_discs(fit), self.coverage, reach, self.settings.min_spacing_mm)
+        return self._cache["satellite"]
 
     def _covering_spot(self, unexplored: tuple[float, float]) -> tuple[float, float]:
         """The covering lattice's point nearest an unexplored spot (its own cell's: within the `none` reach of
@@ -329,7 +341,11 @@ class Decision:
         rival = self._rivals_unread_lump() if chosen else None
         if rival is not None:  # a rival's lump where nothing was read: one reading over it says if it is there
             return float(rival[0]), float(rival[1])
-        decisive = self._decisive_spot() if chosen and self._stands() else None
+        stands = chosen and self._stands()
+        satellite = self._satellite_hole() if stands else None
+        if satellite is not None:  # all else holds: lumps found together, and a hole beside them a lump could hide in
+            return float(satellite[0]), float(satellite[1])
+        decisive = self._decisive_spot() if stands else None
         if decisive is not None:  # all else holds: one reading where a rival as good disagrees most
             return float(decisive[0]), float(decisive[1])
         cells = self._candidates()
