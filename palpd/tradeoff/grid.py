@@ -43,8 +43,8 @@ def _entries(*rows: dict) -> list[GridEntry]:
     return [GridEntry(**row) for row in rows]
 
 
-# The knobs a user turns: active's stop rule (tolerance, confidence; coverage: lumps left unfelt against
-# palpations) and indentation (depth, speed) at its default budget; raster and random at counts from a quick
+# The knobs a user turns: active's stop rule (tolerance, confidence; coverage and the closer look beside lumps
+# found together, off: lumps left unfelt against palpations) and indentation (depth, speed) at its default budget; raster and random at counts from a quick
 # look to the seed paper's 81; sliding at speeds from 10 to 40 mm/s (the modulation faster with the speed: a
 # reading every 2.5-4 mm of path), as a raster and along random paths.
 DEFAULT_GRID = _entries(
@@ -52,6 +52,7 @@ DEFAULT_GRID = _entries(
     *({"strategy": "active", "settings": {"learner": {"tolerance_mm": t}}} for t in (0.25, 1.0, 2.0)),
     *({"strategy": "active", "settings": {"learner": {"confidence": c}}} for c in (0.7, 0.99)),
     *({"strategy": "active", "settings": {"learner": {"coverage_mm": c}}} for c in (11.0, 14.0)),
+    {"strategy": "active", "settings": {"learner": {"satellite_reach": 0.0}}},
     *({"strategy": "active", "settings": {"palpation": {"depth_mm": d}}} for d in (2.0, 6.0)),
     *({"strategy": "active", "settings": {"palpation": {"speed_mm_s": v}}} for v in (5.0, 20.0)),
     *({"strategy": "raster", "palpations": n} for n in (9, 25, 49, 81)),
