@@ -203,6 +203,9 @@ def test_readings_faintly_above_the_model_around_a_hole_send_the_next_probe_into
     one = np.zeros(len(readings_xy))
     one[np.flatnonzero(around)[0]] = 2.0
     assert hidden_lump_spot(one, readings_xy, readings, 11.0) is None
+    readings.probed((-15.0, 15.0))  # a palpation there gave no reading: looked at, not asked for again and again
+    again = hidden_lump_spot(np.where(around, 2.0, 0.0), readings_xy, readings, 11.0)
+    assert again is None or math.dist(again, (-15.0, 15.0)) >= 0.75 * 11.0
 
 
 def test_a_reading_that_moves_the_centre_further_than_its_sd_allows_is_not_settled():
@@ -620,7 +623,7 @@ def test_one_ellipse_over_a_lump_and_a_neighbours_edge_is_read_where_two_circles
 
 def test_a_satellite_hole_is_the_widest_gap_beside_the_lumps_and_none_once_read_closely():
     """coverage.satellite_hole: cells outside the lumps within 3 radii of one, farther than reach x radius from
-    every reading; the farthest of them first, nothing inside a lump or far from all of them."""
+    every palpation; the farthest of them first, nothing inside a lump or far from all of them."""
     from palpd.learner import coverage
 
     gx, gy = np.meshgrid(np.arange(-30.0, 31.0, 2.0), np.arange(-30.0, 31.0, 2.0))
@@ -632,12 +635,35 @@ def test_a_satellite_hole_is_the_widest_gap_beside_the_lumps_and_none_once_read_
             readings.add(xy)
         return readings
 
-    centres_and_edges = [(-8, 0), (4, 0), (-14, 0), (10, 0), (-8, 6), (-8, -6), (4, 6), (4, -6), (-2, 0)]
+    centres_and_edges = np.array([(-8, 0), (4, 0), (-14, 0), (10, 0), (-8, 6), (-8, -6), (4, 6), (4, -6), (-2, 0)], float)
     hole = coverage.satellite_hole(discs, read(centres_and_edges), 1.5, 1.5)
     assert hole is not None
-    assert min(np.hypot(*(np.array(centres_and_edges) - hole).T)) > 7.5  # a spot no reading is within 1.5 R of
+    assert min(np.hypot(*(centres_and_edges - hole).T)) > 7.5  # a spot no reading is within 1.5 R of
     assert min(math.dist(hole, c) for c, _ in discs) <= 15.0  # beside a lump (within 3 R), not across the tissue
     assert all(math.dist(hole, c) > r for c, r in discs)  # never inside a found lump
     lattice = [(x, y) for x in np.arange(-30.0, 31.0, 5.0) for y in np.arange(-30.0, 31.0, 5.0)]
     assert coverage.satellite_hole(discs, read(lattice), 1.5, 1.5) is None  # read 5 mm apart: no hole of 7.5 mm
     assert coverage.satellite_hole(discs, read(centres_and_edges), 4.0, 1.5) is None  # a reach of 4 R: none
+    tried = read(centres_and_edges)
+    tried.probed(hole)  # a palpation there that gave no reading
+    assert tried.distance_mm.max() == read(centres_and_edges).distance_mm.max()  # it is no reading...
+    again = coverage.satellite_hole(discs, tried, 1.5, 1.5)
+    assert again is None or math.dist(again, hole) > 7.5  # ...but that hole was looked at
+
+
+def test_a_satellite_hole_probed_without_a_reading_is_not_asked_for_again():
+    """A palpation at a hole that gave no stiffness (no contact, a rejected trace) counts as looked at: the same
+    spot would give none again, and asking for it again and again spent the budget there."""
+    from palpd.config import LearnerSettings
+    from palpd.learner import Learner
+
+    learner = Learner((60.0, 60.0), LearnerSettings(grid_points=61), 0.3, 0)
+    k_at = lambda xy: 0.12 + 0.6 * (math.dist(xy, (-8.0, 0.0)) < 5.0 or math.dist(xy, (4.0, 0.0)) < 5.0)
+    for xy in [(-8, 0), (4, 0), (-14, 0), (10, 0), (-8, 6), (-8, -6), (4, 6), (4, -6), (-2, 0), (-11, 3), (7, -3),
+               (-5, -3), (1, 3), (-22.5, -24.0), (22.5, 24.0), (-22.5, 24.0), (22.5, -24.0)]:
+        learner.observe(xy, k_at(xy) * 1.001, 0.0004)
+    hole = learner._satellite_hole()
+    assert hole is not None and learner.model()["chosen"] == "circles:2"
+    learner.observe(tuple(hole), None, outcome="rejected")
+    again = learner._satellite_hole()
+    assert again is None or math.dist(again, hole) > 7.5

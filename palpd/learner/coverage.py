@@ -88,7 +88,7 @@ def hidden_lump_spot(excess: np.ndarray, readings_xy: np.ndarray, readings: "Rea
     coverage cell at least HOLE_FRACTION of `reach_mm` from every reading), the readings within `reach_mm`
     are tested for a common rise over the chosen model, Σz/√n; where that is a JOINT_SIGMA surprise, the
     hole with the largest is probed."""
-    holes = readings.distance_mm >= HOLE_FRACTION * reach_mm
+    holes = readings.probe_distance_mm >= HOLE_FRACTION * reach_mm  # a palpation there that gave no reading: looked at
     if not holes.any() or len(excess) == 0:
         return None
     cells = readings.cells_xy[holes]
@@ -100,7 +100,7 @@ def hidden_lump_spot(excess: np.ndarray, readings_xy: np.ndarray, readings: "Rea
 
 
 def satellite_hole(discs, readings: "Readings", reach: float, spacing_mm: float) -> np.ndarray | None:
-    """The middle of the widest hole between readings beside the found lumps, or None.
+    """The middle of the widest hole between probes beside the found lumps, or None.
 
     Lumps found together come close together (four-lumps, touching-lumps: edges 2-4 mm apart), and a lump
     with a sharp edge is felt only by a reading inside it, so the tissue-wide `coverage_mm` (a hole of up to
@@ -108,19 +108,20 @@ def satellite_hole(discs, readings: "Readings", reach: float, spacing_mm: float)
     eight, and over a lump 7-9 mm beside two found ones on random scenes. Beside each found lump (radius R:
     cells outside every found lump within (2 + SATELLITE_GAP)·R of its centre, where the centre of a lump
     as large lies when its edge is within SATELLITE_GAP·R of this one's), no cell may be farther than
-    reach·R from every reading (never below the probe spacing). The cell farthest from every reading is
-    the middle of the widest such hole."""
-    cells, distance = readings.cells_xy, readings.distance_mm
-    inside = np.zeros(len(cells), dtype=bool)
-    hole = np.zeros(len(cells), dtype=bool)
+    reach·R from every probe (never below the probe spacing). Probes, not readings: a palpation there that
+    gave no stiffness (no contact, a rejected trace) would give none again, and the hole would draw probe
+    after probe. The cell farthest from every probe is the middle of the widest such hole."""
+    cells_xy, distance = readings.cells_xy, readings.probe_distance_mm
+    inside = np.zeros(len(cells_xy), dtype=bool)
+    hole = np.zeros(len(cells_xy), dtype=bool)
     for centre, radius in discs:
-        d = np.hypot(cells[:, 0] - centre[0], cells[:, 1] - centre[1])
+        d = np.hypot(cells_xy[:, 0] - centre[0], cells_xy[:, 1] - centre[1])
         inside |= d <= radius
         hole |= (d <= (2.0 + SATELLITE_GAP) * radius) & (distance > max(reach * radius, spacing_mm))
     hole &= ~inside
     if not hole.any():
         return None
-    return cells[np.flatnonzero(hole)[int(np.argmax(distance[hole]))]]
+    return cells_xy[np.flatnonzero(hole)[int(np.argmax(distance[hole]))]]
 
 
 def lump_params(fit) -> list[np.ndarray]:
@@ -171,12 +172,20 @@ class Readings:
     def __init__(self, cells_xy: np.ndarray, spacing_mm: float) -> None:
         self.cells_xy = cells_xy
         self.distance_mm = np.full(len(cells_xy), np.inf)
+        self.probe_distance_mm = np.full(len(cells_xy), np.inf)  # to any palpation, with a reading or not
         self.spacing_mm = spacing_mm
         self._spots: list[tuple[float, float]] = []
 
+    def probed(self, xy) -> None:
+        """A palpation there, whatever came of it: a spot where one gave no reading would give none again."""
+        np.minimum(self.probe_distance_mm, np.hypot(self.cells_xy[:, 0] - xy[0], self.cells_xy[:, 1] - xy[1]),
+                   out=self.probe_distance_mm)
+
     def add(self, xy) -> None:
+        """A reading there (a palpation too)."""
         x, y = float(xy[0]), float(xy[1])
         np.minimum(self.distance_mm, np.hypot(self.cells_xy[:, 0] - x, self.cells_xy[:, 1] - y), out=self.distance_mm)
+        np.minimum(self.probe_distance_mm, self.distance_mm, out=self.probe_distance_mm)
         if all(math.dist((x, y), spot) >= self.spacing_mm for spot in self._spots):
             self._spots.append((x, y))
 

@@ -84,6 +84,7 @@ class Learner(Decision):
         fit_before = None if self.choice is None else self.chosen_fit()  # what the newest reading may move
         chosen_before = None if self.choice is None else self.choice.chosen
         if not self.obs.add(xy, outcome, value, sd_n_per_mm if outcome == "fit" else 0.0):
+            self.coverage.probed(xy)  # no reading, but looked at
             return
         self.coverage.add(xy)
         self._fit_before = fit_before
