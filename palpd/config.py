@@ -179,7 +179,7 @@ class LearnerSettings(_Section):
     # 11 mm from its centre), so `none` rules out lumps of 10 mm radius and wider
     none_coverage_mm: Positive = 11.0
     # ...and, beside two or more lumps found, no spot within three radii of one farther than this many of its
-    # radii from a reading (a lump nearly touching them, felt by no reading); 0: off
+    # radii from a palpation (a lump nearly touching them, felt by no reading); 0: off
     satellite_reach: NonNegative = 1.5
     length_scale_mm: tuple[Positive, Positive] = (1.5, 8.0)  # bounds of the free-form map's kernel length scale
     refit_growth: Annotated[float, Field(gt=1.0)] = 1.3  # relearn that kernel when the data grew this much

@@ -85,10 +85,10 @@ def hidden_lump_spot(excess: np.ndarray, readings_xy: np.ndarray, readings: "Rea
     """Where an unseen lump would sit, or None. A lump in a hole between readings raises each of them a
     little (a 6 mm lump 10.6 mm from four readings: 1.7-2.8 sd each, too little for a hypothesis of its
     own, which wants one reading 3 sd off, evidence.supported), and all of them together: at each hole (a
-    coverage cell at least HOLE_FRACTION of `reach_mm` from every reading), the readings within `reach_mm`
+    coverage cell at least HOLE_FRACTION of `reach_mm` from every palpation), the readings within `reach_mm`
     are tested for a common rise over the chosen model, Σz/√n; where that is a JOINT_SIGMA surprise, the
     hole with the largest is probed."""
-    holes = readings.probe_distance_mm >= HOLE_FRACTION * reach_mm  # a palpation there that gave no reading: looked at
+    holes = readings.probe_distance_mm >= HOLE_FRACTION * reach_mm  # one there that gave no reading: looked at
     if not holes.any() or len(excess) == 0:
         return None
     cells = readings.cells_xy[holes]

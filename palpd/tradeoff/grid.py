@@ -44,9 +44,10 @@ def _entries(*rows: dict) -> list[GridEntry]:
 
 
 # The knobs a user turns: active's stop rule (tolerance, confidence; coverage and the closer look beside lumps
-# found together, off: lumps left unfelt against palpations) and indentation (depth, speed) at its default budget; raster and random at counts from a quick
-# look to the seed paper's 81; sliding at speeds from 10 to 40 mm/s (the modulation faster with the speed: a
-# reading every 2.5-4 mm of path), as a raster and along random paths.
+# found together, off: lumps left unfelt against palpations) and indentation (depth, speed) at its default
+# budget; raster and random at counts from a quick look to the seed paper's 81; sliding at speeds from 10 to
+# 40 mm/s (the modulation faster with the speed: a reading every 2.5-4 mm of path), as a raster and along
+# random paths.
 DEFAULT_GRID = _entries(
     {"strategy": "active"},
     *({"strategy": "active", "settings": {"learner": {"tolerance_mm": t}}} for t in (0.25, 1.0, 2.0)),
