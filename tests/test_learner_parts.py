@@ -149,6 +149,34 @@ def test_map_truth_is_the_half_height_region_and_iou_compares_polygons(tmp_path)
     assert metrics.iou(disc, {"center_mm": [12.0, 0.0], "radius_mm": region["radius_mm"]}) < 0.3
 
 
+def _write_map(path, step_mm, k_at):
+    axis = np.arange(-30.0, 30.0 + 1e-9, step_mm)
+    rows = ["x_mm,y_mm,stiffness_n_per_mm"] + [f"{x:.2f},{y:.2f},{k_at(x, y):.5f}" for x in axis for y in axis]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def test_map_truth_keeps_lumps_that_nearly_touch_apart_and_a_1_mm_lump_at_1_mm(tmp_path):
+    """touching-lumps' three lumps as a measured map: their tails join above the tissue level, so they had been
+    one region, centred between them; and a 1 mm lump's half-height area, taken on the map smoothed by 0.5 mm,
+    had a radius of 1.39 mm."""
+    from drivers.sim.tissue import lump_profile, lump_sharpness
+
+    centres = [(-8.0, 0.0), (4.0, 0.0), (-1.0, 13.5)]
+    sharp = lump_sharpness(5.0, 2.0)
+    touching = _write_map(tmp_path / "touching.csv", 1.0, lambda x, y: 0.12 + 0.68 * max(
+        lump_profile(math.dist((x, y), c), 5.0, sharp) for c in centres))
+    truth = metrics.map_regions(touching, (60.0, 60.0), 0.3)
+    assert len(truth) == 3
+    for c in centres:
+        (near,) = [t for t in truth if math.dist(t["center_mm"], c) < 0.2]
+        assert near["radius_mm"] == pytest.approx(5.0, abs=0.15)
+    tiny = _write_map(tmp_path / "tiny.csv", 0.5, lambda x, y: 0.12 + 0.68 * lump_profile(
+        math.dist((x, y), (5.0, 5.0)), 1.0, lump_sharpness(1.0, 3.0)))
+    (region,) = metrics.map_regions(tiny, (60.0, 60.0), 0.3)
+    assert region["center_mm"] == pytest.approx([5.0, 5.0], abs=0.1) and region["radius_mm"] == pytest.approx(1.0, abs=0.1)
+
+
 def test_the_learner_imports_nothing_above_it():
     code = ("import sys, palpd.learner, palpd.learner.service; "
             "print(sorted(m for m in sys.modules if m.startswith('palpd.') and not m.startswith('palpd.learner')))")
