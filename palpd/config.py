@@ -13,6 +13,7 @@ from typing import Annotated, Literal, Mapping
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from drivers.errors import describe_validation_error
+from drivers.sim.scene import TissueSide
 from drivers.tomlfile import read_toml
 from palpd.errors import ConfigError
 from palpd.settings_bounds import bound_problem, consistency_problem
@@ -60,7 +61,7 @@ class TissueSettings(_Section):
     """Where the tissue is registered on the bench; a simulated scan takes it from the scene."""
 
     origin_mm: tuple[Finite, Finite, Finite] = (0.0, -60.0, 0.0)
-    size_mm: tuple[Positive, Positive] = (60.0, 60.0)
+    size_mm: tuple[TissueSide, TissueSide] = (60.0, 60.0)
 
 
 class ServoSettings(_Section):

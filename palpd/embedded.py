@@ -43,11 +43,11 @@ def run_simulated_scan(settings, scene, progress: Callable | None = None, realti
 
     s = settings.scan
     budget = max_palpations or (settings.learner.max_palpations if s.strategy == "active" else s.max_palpations)
-    planner = plan(s.strategy, scene.tissue.size_mm, budget, s.seed, settings)
-    bench, close = _open_bench(settings, scene, s.seed, realtime, in_process)
-    if on_start is not None:
-        on_start(planner)
+    bench, close = _open_bench(settings, scene, s.seed, realtime, in_process)  # refuses a tissue out of reach first
     try:
+        planner = plan(s.strategy, scene.tissue.size_mm, budget, s.seed, settings)
+        if on_start is not None:
+            on_start(planner)
         report = {"scene": scene.name, **run_scan(bench, settings, planner, progress)}
     finally:
         close()

@@ -214,6 +214,22 @@ def test_the_covering_lattice_of_a_60_mm_square_at_11_mm_is_16_points_its_first_
     assert np.min([math.dist(a, b) for i, a in enumerate(first) for b in first[i + 1:]]) >= 20.0
 
 
+def test_the_first_design_of_a_wide_tissue_is_toured_only_as_far_as_it_is_palpated():
+    """The tour was quadratic in pure Python over every lattice point: a 2 m tissue's first design took
+    minutes. Its first points are the whole tour's first points."""
+    import time
+
+    from palpd.learner.design import covering_lattice, first_design, lattice_order
+
+    lattice = covering_lattice((60.0, 60.0), 11.0)
+    for seed in range(8):
+        assert lattice_order(lattice, seed, 10) == lattice_order(lattice, seed)[:10]
+    wide = covering_lattice((750.0, 750.0), 11.0)
+    started = time.process_time()
+    design = first_design((750.0, 750.0), wide, 8, 0)
+    assert len(design) == 8 and time.process_time() - started < 2.0  # CPU time: a busy machine does not stretch it
+
+
 def test_readings_faintly_above_the_model_around_a_hole_send_the_next_probe_into_it():
     """Four readings each 2 sd above the chosen model around an unread spot: no one of them is a lump
     (evidence.supported), together they are (4 × 2 / √4 = 4 sd); one such reading alone, or readings below, are not."""

@@ -28,6 +28,7 @@ LUMP = "[[lump]]\ncenter_mm = [0, 0]\nradius_mm = 5\nstiffness_n_per_mm = 0.5\n"
     ('name = "x"\n[tissue]\nstiffness_n_per_mm = -1\n', "tissue.stiffness_n_per_mm: Input should be greater than 0"),
     ('name = "x"\n[[lump]]\ncenter_mm = [100, 0]\nradius_mm = 5\nstiffness_n_per_mm = 0.5\n', "wholly outside"),
     ('name = "x"\n[sensor]\ntilt = "sometimes"\n', "sensor.tilt"),
+    ('name = "x"\n[tissue]\nsize_mm = [1e6, 60]\n', "tissue.size_mm.0: Input should be less than or equal to 758"),
 ])
 def test_invalid_scenes_are_rejected_with_one_clear_line(tmp_path, text, message):
     path = scene_file(tmp_path, text)
@@ -111,6 +112,15 @@ def test_cli_reports_a_bad_scene_in_one_line(tmp_path, run_cli):
     assert_one_line_error(result, str(path), "lump.0.center_mm")
     result = run_cli("scan", "--scene", tmp_path / "absent.toml")
     assert_one_line_error(result, "absent.toml", "not found")
+
+
+def test_an_active_scan_of_a_tissue_out_of_reach_is_refused_before_it_is_planned(tmp_path, run_cli):
+    """A 700 mm tissue (within the arm's span, not its reach from the origin) was planned first: the
+    active planner's lattice and tour over it took longer than the refusal that followed (a 2 m one hung)."""
+    path = scene_file(tmp_path, 'name = "x"\n[tissue]\nsize_mm = [700, 700]\n')
+    result = run_cli("scan", "--scene", path, "--strategy", "active")
+    assert_one_line_error(result, "size_mm", "out of the arm's reach")
+    assert result.returncode == 78
 
 
 def test_the_random_scenes_the_learner_is_tried_on_are_valid_reproducible_and_keep_their_lumps_apart():

@@ -11,6 +11,7 @@ import math
 
 L1_M = 0.2095
 L2_M = 0.1695
+SPAN_MM = 2000.0 * (L1_M + L2_M)  # no two spots farther apart than this are both within the arm's reach
 CAPSTAN_RATIO = (13.3, 11.2, 11.2)
 ENCODER_COUNTS_PER_REV = 1024 * 4  # 1024 CPR read in quadrature
 RAD_PER_COUNT = tuple(2.0 * math.pi / (ENCODER_COUNTS_PER_REV * eta) for eta in CAPSTAN_RATIO)

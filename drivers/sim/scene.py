@@ -9,11 +9,14 @@ from typing import Annotated, Literal, Optional
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from drivers.errors import DriverInitializationError, describe_validation_error
+from drivers.phantom.model import SPAN_MM
 from drivers.tomlfile import read_toml
 
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegativeFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+# A side no arm could reach across is a slip of units (metres, micrometres), refused before anything is planned on it.
+TissueSide = Annotated[float, Field(gt=0, le=SPAN_MM, allow_inf_nan=False)]
 
 
 class SceneError(DriverInitializationError):
@@ -27,7 +30,7 @@ class _Strict(BaseModel):
 
 
 class Tissue(_Strict):
-    size_mm: tuple[PositiveFloat, PositiveFloat] = (60.0, 60.0)
+    size_mm: tuple[TissueSide, TissueSide] = (60.0, 60.0)
     stiffness_n_per_mm: PositiveFloat = 0.12
     exponent: Annotated[float, Field(ge=0.5, le=3.0)] = 1.0
     damping_n_s_per_mm: NonNegativeFloat = 0.0

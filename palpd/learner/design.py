@@ -138,7 +138,7 @@ def first_design(size_mm, lattice: np.ndarray, count: int, seed: int) -> list[tu
     """The first `count` palpations: the lattice (lattice_order), then scrambled Halton points if more are asked."""
     if count <= 0:
         return []
-    points = lattice_order(lattice, seed)[:count]
+    points = lattice_order(lattice, seed, count)
     return points + halton(size_mm, count - len(points), seed) if len(points) < count else points
 
 
@@ -153,9 +153,10 @@ def halton(size_mm, count: int, seed: int) -> list[tuple[float, float]]:
     return tour(qmc.scale(unit, -half, half), start=np.zeros(2))
 
 
-def lattice_order(lattice: np.ndarray, seed: int) -> list[tuple[float, float]]:
-    """The lattice in the order to palpate it: one checkerboard half, then the other, each in a short
-    nearest-neighbour tour; the seed mirrors the lattice (a mirror image covers as well) and picks the half."""
+def lattice_order(lattice: np.ndarray, seed: int, count: int | None = None) -> list[tuple[float, float]]:
+    """The lattice (its first `count` points) in the order to palpate it: one checkerboard half, then the
+    other, each in a short nearest-neighbour tour; the seed mirrors the lattice (a mirror image covers as
+    well) and picks the half."""
     mirror = np.where([seed & 2, seed & 4], -1.0, 1.0)
     points = lattice * mirror
     rows = np.unique(np.round(lattice[:, 1], 6), return_inverse=True)[1]
@@ -165,17 +166,21 @@ def lattice_order(lattice: np.ndarray, seed: int) -> list[tuple[float, float]]:
         in_row = order[rows[order] == row]
         parity[in_row] = (np.arange(len(in_row)) + row) % 2
     first = parity == seed % 2
-    start = tour(points[first], np.zeros(2))
-    return start + tour(points[~first], np.asarray(start[-1]) if start else np.zeros(2))
+    start = tour(points[first], np.zeros(2), count)
+    rest = None if count is None else count - len(start)
+    return start + tour(points[~first], np.asarray(start[-1]) if start else np.zeros(2), rest)
 
 
-def tour(points: np.ndarray, start: np.ndarray) -> list[tuple[float, float]]:
-    """The points in a nearest-neighbour tour from `start`."""
-    left = list(range(len(points)))
-    here, order = start, []
-    while left:
-        nearest = min(left, key=lambda i: float(np.hypot(*(points[i] - here))))
-        left.remove(nearest)
+def tour(points: np.ndarray, start: np.ndarray, count: int | None = None) -> list[tuple[float, float]]:
+    """The points (the first `count` of them) in a nearest-neighbour tour from `start`; each step one
+    vectorised pass, as a tissue hundreds of millimetres across has thousands of lattice points."""
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    left = np.ones(len(points), dtype=bool)
+    here, order = np.asarray(start, dtype=float), []
+    for _ in range(len(points) if count is None else min(count, len(points))):
+        distance = np.where(left, np.hypot(points[:, 0] - here[0], points[:, 1] - here[1]), np.inf)
+        nearest = int(np.argmin(distance))
+        left[nearest] = False
         here = points[nearest]
         order.append((float(here[0]), float(here[1])))
     return order
