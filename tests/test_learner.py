@@ -129,7 +129,19 @@ def test_flat_tissue_is_none_and_stops_once_no_10_mm_lump_could_hide(k):
     learner = learn(field([], tissue=k), budget=200)
     assert learner.lumps() == [] and learner.model()["chosen"] == "none" and learner.verdict() == "none"
     assert np.max(learner.coverage.distance_mm) <= learner.settings.none_coverage_mm == 11.0
-    assert learner.points <= 20  # the covering lattice's 16 (going to the farthest spot in turn took 28)
+    assert learner.points <= 20  # the covering lattice's 16 and the centre (going to the farthest spot in turn took 28)
+    assert min(math.hypot(*xy) for xy in learner.probed) <= 0.5 * learner.settings.none_coverage_mm
+
+
+@pytest.mark.parametrize("centre", [(0.0, 0.0), (2.0, -1.5)])
+def test_a_small_lump_centred_on_the_tissue_is_found_before_none_is_claimed(centre):
+    """The covering lattice of a square leaves its widest hole at the centre, where users put what they came to
+    examine: a 5 mm lump 2 mm deep there was felt by none of its 16 points and the scan said `none` at 17."""
+    truth = [(centre, 5.0, 2.0, 0.5)]
+    learner = learn(field(truth))
+    m = metrics.compare([{"center_mm": c, "radius_mm": r} for c, r, *_ in truth], [l.as_dict() for l in learner.lumps()])
+    assert learner.verdict() == "lumps" and m["lumps_found"] == 1 and m["false_lumps"] == 0, m
+    assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5 and learner.points <= 30, m
 
 
 def test_a_sharp_10_mm_lump_in_the_covering_lattice_s_deepest_hole_is_found():
