@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 from pathlib import Path
 
 from palpd.errors import PalpdError
@@ -25,7 +26,12 @@ def _check_writable(path: Path) -> None:
         raise PalpdError(f"{path}: cannot write: {exc.strerror}") from None
     if path.is_dir():
         raise PalpdError(f"{path}: cannot write: Is a directory")
-    if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+    try:  # a file made there and dropped: os.access says yes to root wherever permissions are the only bar (/proc too)
+        with tempfile.TemporaryFile(dir=path.parent):
+            pass
+    except OSError as exc:
+        raise PalpdError(f"{path}: cannot write: {exc.strerror or exc}") from None
+    if path.exists() and not os.access(path, os.W_OK):
         raise PalpdError(f"{path}: cannot write: Permission denied")
 
 

@@ -187,3 +187,11 @@ def test_cli_unwritable_report(tmp_path, run_cli):
                      "--report", tmp_path / "blocker" / "r.json")
     assert result.returncode != 0 and "Traceback" not in result.stderr
     assert "r.json: cannot write" in result.stderr and "palpations in" not in result.stdout  # before, not after
+
+
+def test_cli_a_report_where_no_file_can_be_made_fails_before_the_scan(run_cli):
+    """/proc lets root pass os.access(W_OK) but makes no file: the check used to pass, the scan ran, the report was lost."""
+    result = run_cli("scan", "--scene", SCENES / "no-lump.toml", "--max-palpations", "1", "--quiet",
+                     "--report", "/proc/palpd-report.json")
+    assert result.returncode != 0 and "Traceback" not in result.stderr
+    assert "palpd-report.json: cannot write" in result.stderr and "palpations in" not in result.stdout

@@ -77,6 +77,9 @@ def test_dataset_command_palpates_the_scene_and_labels_the_lump(tmp_path, run_cl
     stiff = np.argmax(data.stiffness_n_per_mm)
     assert data.tumor[stiff] == 1 and data.stiffness_n_per_mm[stiff] > 3 * np.median(data.stiffness_n_per_mm)
     assert_one_line_error(run_cli("dataset", "--scene", SCENES / "paper.toml", "--palpations", "0"), "--palpations")
+    (tmp_path / "blocker").write_text("")
+    result = run_cli("dataset", "--scene", SCENES / "paper.toml", "--palpations", "100000", "--out", "blocker/d.csv")
+    assert_one_line_error(result, "d.csv: cannot write")  # at once: after 100000 palpations, the run times out
 
 
 def test_manual_coverage_is_uneven_and_inside_the_tissue():

@@ -31,8 +31,9 @@ def run(args) -> int:
     settings = load_settings(args.config)
     scene = load_scene_named(args.scene)
     from palpd.dataset import make_dataset, rotated, to_csv
-    from palpd.files import write_text
+    from palpd.files import check_writable, write_text
 
+    check_writable(args.out)  # before palpating: the dataset must not be lost to a typo in a path
     if args.rotation_deg is not None:
         scene = rotated(scene, args.rotation_deg)
     from tqdm import tqdm
