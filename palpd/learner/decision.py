@@ -158,8 +158,8 @@ class Decision:
 
     def _covering_spot(self, unexplored: tuple[float, float]) -> tuple[float, float]:
         """The covering lattice's point nearest an unexplored spot (its own cell's: within the `none` reach of
-        it), unless a probe was made there or it is farther than CENTRE_REACH from the tissue's centre
-        asked for: the lattice covers the tissue with the fewest readings."""
+        it): the lattice covers the tissue with the fewest readings. The spot itself if a probe was made at
+        that point, or if the spot is the tissue's centre and the point farther from it than CENTRE_REACH."""
         near = self.lattice[np.argmin(np.hypot(*(self.lattice - np.asarray(unexplored)).T))]
         if unexplored == (0.0, 0.0) and math.hypot(*near) > CENTRE_REACH * self.settings.none_coverage_mm:
             return unexplored
