@@ -105,10 +105,13 @@ def compare(truth: list[dict], lumps: list[dict], size_mm=None) -> dict:
         best = min(unmatched, key=lambda i: math.dist(lumps[i]["center_mm"], true["center_mm"]))
         unmatched.remove(best)
         est = lumps[best]
+        centre, radius = true["center_mm"], true["radius_mm"]
+        if est.get("cut_by_edge") and size_mm is not None and not true.get("boundary_mm"):
+            centre, radius = part_on_tissue(true, size_mm)  # what such a lump reports (a map's truth already is)
         per_lump.append({
             "found": True,
-            "center_error_mm": round(math.dist(est["center_mm"], true["center_mm"]), 3),
-            "radius_error_mm": round(abs(est["radius_mm"] - true["radius_mm"]), 3),
+            "center_error_mm": round(math.dist(est["center_mm"], centre), 3),
+            "radius_error_mm": round(abs(est["radius_mm"] - radius), 3),
             "iou": round(iou(est["boundary_mm"], true, size_mm), 4),
         })
     found = [m for m in per_lump if m["found"]]
@@ -122,6 +125,22 @@ def compare(truth: list[dict], lumps: list[dict], size_mm=None) -> dict:
         "min_iou": min((m["iou"] for m in found), default=None),
         "per_lump": per_lump,
     }
+
+
+def part_on_tissue(true: dict, size_mm) -> tuple[list[float], float]:
+    """The centroid and equal-area radius of a true disc's part on the tissue, as a lump reported `cut_by_edge`
+    gives its own (a 6 mm lump centred 4 mm inside a corner was scored 0.94 mm off in centre against the whole
+    circle, though its part on the tissue was found within 0.05 mm)."""
+    half = np.asarray(size_mm, dtype=float) / 2
+    centre, radius = np.asarray(true["center_mm"], dtype=float), float(true["radius_mm"])
+    low, high = np.maximum(centre - radius, -half), np.minimum(centre + radius, half)
+    step = IOU_GRID_MM / 2.0
+    gx, gy = np.meshgrid(np.arange(low[0] + step / 2, high[0], step), np.arange(low[1] + step / 2, high[1], step))
+    points = np.column_stack([gx.ravel(), gy.ravel()])  # cell centres on the tissue
+    inside = points[np.hypot(points[:, 0] - centre[0], points[:, 1] - centre[1]) <= radius]
+    if not len(inside):
+        return [float(v) for v in centre], radius
+    return [float(v) for v in inside.mean(axis=0)], math.sqrt(len(inside) * step * step / math.pi)
 
 
 def iou(boundary_mm: list[list[float]], true: dict, size_mm=None) -> float:

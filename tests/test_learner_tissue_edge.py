@@ -107,6 +107,28 @@ def test_iou_is_judged_on_the_tissue_where_a_size_is_given():
     assert metrics.iou(clipped.tolist(), true) < 0.85
 
 
+@pytest.mark.parametrize("centre", [(30.0, 0.0), (-26.0, -26.0), (0.0, 27.0)])
+def test_a_lump_reported_by_its_part_on_the_tissue_is_scored_against_the_truth_s_part(centre):
+    """A half disc on the edge has its centroid 4r/3π inside and radius r/√2. A lump reported `cut_by_edge`
+    (the part's centroid and equal-area radius) was scored against the whole circle: a 6 mm lump 4 mm inside
+    a corner, found within 0.05 mm, scored 0.94 mm off. Reported whole, it is scored whole, as before."""
+    from palpd import metrics
+
+    true = {"center_mm": list(centre), "radius_mm": 6.0}
+    part_centre, part_radius = metrics.part_on_tissue(true, TISSUE_MM)
+    if centre == (30.0, 0.0):
+        assert part_centre == pytest.approx([30.0 - 4.0 * 6.0 / (3.0 * math.pi), 0.0], abs=0.01)
+        assert part_radius == pytest.approx(6.0 / math.sqrt(2.0), abs=0.01)
+    disc = shapes.make_lump(centre, 6.0, 6.0, 3.0)
+    clipped = describe.clip_to_tissue(shapes.boundary_polygon(disc, False, 360), np.array(TISSUE_MM) / 2)
+    reported = {"center_mm": part_centre, "radius_mm": part_radius, "boundary_mm": clipped.tolist(), "cut_by_edge": True}
+    m = metrics.compare([true], [reported], TISSUE_MM)
+    assert m["max_center_error_mm"] < 0.01 and m["max_radius_error_mm"] < 0.01 and m["min_iou"] > 0.95
+    whole = metrics.compare([true], [dict(reported, cut_by_edge=False)], TISSUE_MM)
+    assert whole["max_center_error_mm"] == pytest.approx(math.dist(part_centre, centre), abs=1e-3)
+    assert whole["max_center_error_mm"] > 0.5
+
+
 @settings(max_examples=25, deadline=None, derandomize=True)
 @given(texture=st.floats(0.02, 0.3), count=st.integers(20, 120), seed=st.integers(0, 1000))
 def test_texture_accounts_for_a_fit_that_leaves_texture_alone_and_not_for_one_that_misses_a_lump(texture, count,
