@@ -176,6 +176,17 @@ def test_beside_two_lumps_found_a_third_nearly_touching_them_is_looked_for(satel
         assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5 and m["min_iou"] >= 0.9, m
 
 
+def test_a_palpation_at_no_finite_position_is_refused_and_the_learner_goes_on():
+    """A NaN position had been taken, and every later update failed (the grid index of NaN)."""
+    learner = Learner((60.0, 60.0), LearnerSettings(grid_points=41), 0.3, 0)
+    learner.observe((0.0, 0.0), 0.12, 0.001)
+    for xy in ((math.nan, 1.0), (0.0, math.inf)):
+        with pytest.raises(ValueError, match="finite"):
+            learner.observe(xy, 0.12, 0.001)
+    learner.observe((10.0, 0.0), 0.12, 0.001)
+    assert learner.points == 2 and learner.next_probe(40) is not None
+
+
 def test_no_evidence_is_never_none_but_undetermined_when_the_budget_runs_out():
     learner = Learner((60.0, 60.0), LearnerSettings(grid_points=41), 0.3, 0)
     for _ in range(12):

@@ -73,6 +73,14 @@ def test_learner_process_turns_palpations_into_estimates_with_next_probe(ctx, tm
         first = Estimate.model_validate_json(body)
         assert topic == b"estimate" and first.points == 0 and first.next_probe_mm is not None
         bus.send_multipart([b"stiffness", b'{"not": "a stiffness message"}'])  # refused, not fatal
+        # valid JSON a hostile or broken publisher could send: a NaN position had left the learner unable to
+        # update again; each is refused in one line and the scan below goes on
+        for topic, body in ((b"stiffness", '"xy_mm": [NaN, 1.0], "stiffness_n_per_mm": 0.2'),
+                            (b"stiffness", '"xy_mm": [1.0, 1.0], "stiffness_n_per_mm": -0.2'),
+                            (b"stiffness", '"xy_mm": [1.0, 1.0], "stiffness_n_per_mm": 0.2, "stiffness_sd_n_per_mm": Infinity'),
+                            (b"palpation", '"xy_mm": [0.0, 0.0], "target_xy_mm": [Infinity, 0.0], "depth_mm": [], '
+                                           '"force_n": [], "outcome": "no_contact"')):
+            bus.send_multipart([topic, f'{{"v": 1, "seq": 0, "t": 0.5, "index": 0, {body}}}'.encode()])
         xy, latest, bounds = first.next_probe_mm, first, 0
         for i in range(1, 31):
             palpate(bus, i, xy)
@@ -92,6 +100,7 @@ def test_learner_process_turns_palpations_into_estimates_with_next_probe(ctx, tm
         out, err = proc.communicate(timeout=10)
     assert proc.returncode == 0, err
     assert "stiffness message" in out and "Traceback" not in err
+    assert "xy_mm" in out and "stiffness_n_per_mm" in out and "stiffness_sd_n_per_mm" in out and "target_xy_mm" in out
 
 
 def test_learner_with_a_bad_endpoint_says_so_in_one_line(tmp_path):

@@ -11,6 +11,10 @@ from typing import Annotated, Any, Literal, Optional
 from pydantic import BaseModel, ConfigDict, Field
 
 SCHEMA_VERSION = 1
+# Positions and stiffnesses a listener acts on: a NaN position (JSON allows the literal) left the learner
+# process unable to update again; refused in the message, the listener says so in one line and goes on.
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 TOPICS = ("status", "palpation", "stiffness", "estimate", "fault")
 COMMANDS = ("status", "scan.start", "scan.stop", "estop", "reset", "estimate.get", "probe.at", "bias")
 # What palpd sends: unknown fields refused, field docstrings as schema descriptions, and every field
@@ -59,20 +63,20 @@ class Palpation(Event):
 
     index: int
     """0-based index of the palpation in its session."""
-    xy_mm: tuple[float, float]
+    xy_mm: tuple[FiniteFloat, FiniteFloat]
     """Where the probe touched, tissue frame."""
     depth_mm: list[float]
     """Indentation below the contact point of each loading sample."""
     force_n: list[float]
     """Normal force of each loading sample."""
-    target_xy_mm: Optional[tuple[float, float]] = None
+    target_xy_mm: Optional[tuple[FiniteFloat, FiniteFloat]] = None
     """Where the probe was aimed (a failed palpation is reported there)."""
     rejected: Optional[str] = None
     """Why no stiffness was fitted (null: a `stiffness` event follows)."""
     outcome: Optional[Outcome] = None
     """What the palpation gave: `fit` (a `stiffness` event follows), `no_contact`, `too_stiff`, `too_soft` or
     `rejected` (null from a daemon older than the field)."""
-    stiffness_bound_n_per_mm: Optional[float] = None
+    stiffness_bound_n_per_mm: Optional[PositiveFloat] = None
     """A censored reading's bound: `too_stiff`, k is at least this; `too_soft`, at most (null otherwise)."""
     presses: Optional[int] = None
     """2 when the force limit came early and the spot was pressed again gently (palpation.too_stiff =
@@ -84,11 +88,11 @@ class Stiffness(Event):
 
     index: int
     """The palpation's index."""
-    xy_mm: tuple[float, float]
+    xy_mm: tuple[FiniteFloat, FiniteFloat]
     """Where the probe touched, tissue frame."""
-    stiffness_n_per_mm: float
+    stiffness_n_per_mm: PositiveFloat
     """Fitted stiffness at the reference depth."""
-    stiffness_sd_n_per_mm: float = 0.0
+    stiffness_sd_n_per_mm: Annotated[float, Field(ge=0, allow_inf_nan=False)] = 0.0
     """Fit uncertainty (standard error), the learner's observation noise."""
     model: str = "linear"
     """The force-displacement model the fit chose."""
@@ -206,10 +210,6 @@ class _Args(BaseModel):
 
 class NoArgs(_Args):
     """The command takes no arguments."""
-
-
-FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
-PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 
 
 class ScanStartArgs(_Args):

@@ -75,6 +75,8 @@ class Learner(Decision):
         `too_soft`: k ≤ bound) or nothing (`no_contact`, `rejected`); every palpation counts and
         blocks its spot. Without an outcome, a usable stiffness is a `fit` and anything else `rejected`."""
         xy = (float(xy_mm[0]), float(xy_mm[1]))
+        if not (math.isfinite(xy[0]) and math.isfinite(xy[1])):
+            raise ValueError(f"a palpation at {xy_mm}: its position must be finite")  # else every later update fails
         self.probed.append(xy)
         self._cache.clear()
         acquisition.block_near(self.blocked, self.xs, self.ys, xy, self.settings.min_spacing_mm)
