@@ -92,7 +92,12 @@ class Client:
         socket.setsockopt(zmq.LINGER, 0)
         for option, value in self._curve.items():
             setattr(socket, option, value)
-        socket.connect(endpoint)
+        try:
+            socket.connect(endpoint)
+        except zmq.ZMQError as exc:  # a typo in an endpoint, named as such rather than as ZeroMQ's errno
+            socket.close()
+            raise ValueError(f"{endpoint!r} is not an endpoint to connect to (tcp://HOST:PORT or ipc://PATH): "
+                             f"{exc}") from None
         return socket
 
     # Commands ---------------------------------------------------------------------------------------

@@ -56,3 +56,12 @@ def test_a_scan_imports_the_fits_scipy_before_its_motors_are_on():
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     assert result.stdout.split("\n")[:2] == ["False", "True True"], result.stdout
+
+
+def test_palpctl_names_an_endpoint_it_cannot_connect_to_in_one_line(run_cli):
+    """A typo in --endpoint was `palpctl: ZMQError: Invalid argument (addr='tcp//...')`."""
+    from conftest import assert_one_line_error
+
+    result = run_cli("--endpoint", "tcp//127.0.0.1:5555", "status", module="palpd.palpctl")
+    assert_one_line_error(result, "'tcp//127.0.0.1:5555' is not an endpoint", "tcp://HOST:PORT")
+    assert result.returncode == 1
