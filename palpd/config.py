@@ -10,7 +10,7 @@ import os
 from pathlib import Path
 from typing import Annotated, Literal, Mapping
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from drivers.errors import describe_validation_error
 from drivers.sim.scene import TissueSide
@@ -194,10 +194,26 @@ class LearnerSettings(_Section):
         return self
 
 
+def _zmq_endpoint(value: str) -> str:
+    """A ZeroMQ endpoint palpd binds or connects: tcp://HOST:PORT (port 1-65535), ipc://PATH or inproc://NAME.
+    Checked here, as ZeroMQ itself took tcp://127.0.0.1:99999 without a word and "garbage" was reported as
+    "not a loopback endpoint; it needs CURVE keys"."""
+    scheme, separator, rest = value.partition("://")
+    if not separator or scheme not in ("tcp", "ipc", "inproc") or not rest:
+        raise ValueError("not a ZeroMQ endpoint (tcp://HOST:PORT, ipc://PATH)")
+    host, colon, port = rest.rpartition(":")
+    if scheme == "tcp" and not (colon and host and port.isdigit() and 1 <= int(port) <= 65535):
+        raise ValueError("a tcp endpoint is tcp://HOST:PORT, its port from 1 to 65535")
+    return value
+
+
+Endpoint = Annotated[str, AfterValidator(_zmq_endpoint)]
+
+
 class BusSettings(_Section):
-    events: str = "tcp://127.0.0.1:5555"
-    commands: str = "tcp://127.0.0.1:5556"
-    learner_events: str = "tcp://127.0.0.1:5557"  # `palpd learner` publishes estimates here
+    events: Endpoint = "tcp://127.0.0.1:5555"
+    commands: Endpoint = "tcp://127.0.0.1:5556"
+    learner_events: Endpoint = "tcp://127.0.0.1:5557"  # `palpd learner` publishes estimates here
     high_water_mark: Annotated[int, Field(ge=1, le=1_000_000)] = 1000  # per subscriber; beyond it PUB drops
     # CURVE: the daemon's secret key file (from `palpd keygen`) and directories of clients' public keys.
     # Required when an endpoint is not loopback or ipc.

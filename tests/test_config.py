@@ -160,6 +160,10 @@ def test_inconsistent_settings_are_refused_naming_the_fields(tmp_path, text, fra
     ("[safety]\nworkspace_z_mm = [80.0, -20.0]\n", ["safety.workspace_z_mm", "inverted"]),
     ("[tissue]\norigin_mm = [0.0, -60.0, -400.0]\n[robot]\nurl = \"socket://127.0.0.1:1\"\n"
      "[sensor]\nbackend = \"netft://127.0.0.1:1\"\n", ["tissue.origin_mm", "out of the arm's reach"]),
+    # ZeroMQ bound port 99999 without a word, and "garbage" was called a non-loopback endpoint needing keys
+    ("[bus]\nevents = \"tcp://127.0.0.1:99999\"\n", ["bus.events", "port from 1 to 65535", "99999"]),
+    ("[bus]\ncommands = \"garbage\"\n", ["bus.commands", "not a ZeroMQ endpoint", "garbage"]),
+    ("[tissue]\nsize_mm = [1000.0, 60.0]\n", ["tissue.size_mm.0", "less than or equal to 758"]),
 ])
 def test_serve_refuses_unbounded_or_inconsistent_settings_with_one_line_and_78(tmp_path, run_cli, text, fragments):
     result = run_cli("serve", "--config", write(tmp_path, text), env=dict(os.environ, PALPD_DAEMON__HTTP=""))
