@@ -177,7 +177,9 @@ class LearnerSettings(_Section):
     coverage_mm: Positive = 18.0  # done only once every spot is this close to a reading: no lump left unfelt
     # ...and a `none` verdict only once every spot is this close (at most coverage_mm; the covering lattice's reach):
     # a sharp-edged lump is felt only a little beyond its radius (a 10 mm lump of sharpness 40 at 2 % of its height
-    # 11 mm from its centre), so `none` rules out lumps of 10 mm radius and wider
+    # 11 mm from its centre), so `none` rules out lumps of 10 mm radius and wider. On a tissue larger than a 60 mm
+    # square the reach widens, up to coverage_mm, until the covering takes no more points than there (16): `none`
+    # in ~18 palpations on any tissue, ruling out a little less (80 x 80 mm: 14.25 mm); the verdict says how much
     none_coverage_mm: Positive = 11.0
     # ...and, beside two or more lumps found, no spot within three radii of one farther than this many of its
     # radii from a palpation (a lump nearly touching them, felt by no reading); 0: off

@@ -133,6 +133,18 @@ def test_flat_tissue_is_none_and_stops_once_no_10_mm_lump_could_hide(k):
     assert min(math.hypot(*xy) for xy in learner.probed) <= 0.5 * learner.settings.none_coverage_mm
 
 
+@pytest.mark.parametrize("size_mm", [(80.0, 80.0), (100.0, 100.0)])
+def test_flat_tissue_larger_than_60_mm_is_none_in_20_palpations_claiming_a_wider_reach(size_mm):
+    """At 11 mm the covering of 80 x 80 mm is 27 points (`none` at 28 palpations), of 100 x 100 mm 38 (40): the
+    reach widens with the tissue (design.none_reach) and the claim says how far it reaches."""
+    learner = Learner(size_mm, LearnerSettings(grid_points=61), 0.3, 0)
+    while (xy := learner.next_probe(40)) is not None:
+        learner.observe(xy, TISSUE, 0.0004)
+    assert learner.verdict() == "none" and learner.points <= 20
+    unfelt = learner.model()["unfelt_radius_mm"]
+    assert 11.0 < unfelt <= learner.none_reach_mm <= learner.settings.coverage_mm
+
+
 @pytest.mark.parametrize("centre", [(0.0, 0.0), (2.0, -1.5)])
 def test_a_small_lump_centred_on_the_tissue_is_found_before_none_is_claimed(centre):
     """The covering lattice of a square leaves its widest hole at the centre, where users put what they came to

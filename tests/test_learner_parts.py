@@ -214,6 +214,33 @@ def test_the_covering_lattice_of_a_60_mm_square_at_11_mm_is_16_points_its_first_
     assert np.min([math.dist(a, b) for i, a in enumerate(first) for b in first[i + 1:]]) >= 20.0
 
 
+@hsettings(max_examples=20, deadline=None)
+@given(width_mm=st.floats(5.0, 200.0), height_mm=st.floats(5.0, 200.0), reach_mm=st.floats(3.0, 15.0),
+       wider_mm=st.floats(0.0, 10.0))
+def test_the_none_reach_widens_only_as_far_as_the_covering_needs_to_stay_small(width_mm, height_mm, reach_mm, wider_mm):
+    """`none` costs the covering lattice's points: on a tissue where the set reach needs more than NONE_POINTS,
+    the reach widens to the first (on its REACH_STEP_MM steps) that needs no more, never past the widest."""
+    from palpd.learner.design import NONE_POINTS, REACH_STEP_MM, covering_lattice, none_reach
+
+    widest = reach_mm + wider_mm
+    reach = none_reach((width_mm, height_mm), reach_mm, widest)
+    assert reach_mm <= reach <= widest
+    points = len(covering_lattice((width_mm, height_mm), reach))
+    if len(covering_lattice((width_mm, height_mm), reach_mm)) <= NONE_POINTS:
+        assert reach == reach_mm
+    elif reach < widest:  # at the widest it may need more: the cap is the user's (--coverage-mm)
+        assert points <= NONE_POINTS < len(covering_lattice((width_mm, height_mm), reach - REACH_STEP_MM))
+
+
+def test_the_none_reach_is_11_mm_up_to_a_60_mm_square_and_wider_beyond():
+    from palpd.learner.design import none_reach
+
+    for size in ((40.0, 40.0), (60.0, 60.0), (70.0, 50.0), (80.0, 40.0)):
+        assert none_reach(size, 11.0, 18.0) == 11.0, size
+    assert 11.0 < none_reach((80.0, 80.0), 11.0, 18.0) < none_reach((100.0, 100.0), 11.0, 18.0) <= 18.0
+    assert none_reach((80.0, 80.0), 11.0, 11.0) == 11.0  # --coverage-mm caps it: the user's side of the trade
+
+
 def test_the_first_design_of_a_wide_tissue_is_toured_only_as_far_as_it_is_palpated():
     """The tour was quadratic in pure Python over every lattice point: a 2 m tissue's first design took
     minutes. Its first points are the whole tour's first points."""

@@ -26,7 +26,7 @@ from palpd.learner.threshold import lump_points, surely_above
 MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model's parameter count
 MIN_WEIGHT = 0.01  # hypotheses below this weight are left out of the disagreement
 MAX_RIVALS = 4
-CENTRE_REACH = 0.5  # `none` waits for a palpation this share of none_coverage_mm from the tissue's centre
+CENTRE_REACH = 0.5  # `none` waits for a palpation this share of its reach (none_reach_mm) from the tissue's centre
 CANDIDATE_STRIDE_MM = 1.0  # probes are chosen on a lattice at least this fine
 NEGLIGIBLE_NATS = 1e-3  # a reading the rivals disagree about by less than this tells them apart by nothing
 DECISIVE_WEIGHT = 1e-6  # a rival this far below the choice (14 nats) is left to the evidence alone (_decisive_spot)
@@ -124,9 +124,10 @@ class Decision:
                     and np.all(moved <= self.settings.tolerance_mm))
 
     def _unexplored(self) -> tuple[float, float] | None:
-        """The spot farthest from every reading, when it is farther than `coverage_mm` (`none_coverage_mm`
-        while the choice is `none`: "no lump" claims the whole tissue, and a sharp-edged lump is felt only
-        within its radius): a lump there whose felt footprint is narrower could not have shown yet.
+        """The spot farthest from every reading, when it is farther than `coverage_mm` (`none_reach_mm`,
+        `none_coverage_mm` or wider on a larger tissue (design.none_reach), while the choice is `none`: "no
+        lump" claims the whole tissue, and a sharp-edged lump is felt only within its radius): a lump there
+        whose felt footprint is narrower could not have shown yet.
 
         `none` also waits for a palpation near the tissue's centre, where a user places what they came to
         examine: the covering lattice of a square has its widest hole there (60 x 60 mm: 11 mm from
@@ -136,13 +137,13 @@ class Decision:
         reach = self.settings.coverage_mm
         if self.choice is None or self.choice.chosen != "none":
             return self.coverage.farthest_beyond(reach)
-        unexplored = self.coverage.farthest_beyond(min(reach, self.settings.none_coverage_mm))
+        unexplored = self.coverage.farthest_beyond(min(reach, self.none_reach_mm))
         if unexplored is None and self._centre_unprobed():
             return 0.0, 0.0
         return unexplored
 
     def _centre_unprobed(self) -> bool:
-        reach = CENTRE_REACH * self.settings.none_coverage_mm
+        reach = CENTRE_REACH * self.none_reach_mm
         return bool(self.probed) and min(math.hypot(x, y) for x, y in self.probed) > reach
 
     def _satellite_hole(self) -> np.ndarray | None:
@@ -161,7 +162,7 @@ class Decision:
         it): the lattice covers the tissue with the fewest readings. The spot itself if a probe was made at
         that point, or if the spot is the tissue's centre and the point farther from it than CENTRE_REACH."""
         near = self.lattice[np.argmin(np.hypot(*(self.lattice - np.asarray(unexplored)).T))]
-        if unexplored == (0.0, 0.0) and math.hypot(*near) > CENTRE_REACH * self.settings.none_coverage_mm:
+        if unexplored == (0.0, 0.0) and math.hypot(*near) > CENTRE_REACH * self.none_reach_mm:
             return unexplored
         if min(math.dist(near, probe) for probe in self.probed) < self.settings.min_spacing_mm:
             return unexplored
@@ -172,7 +173,7 @@ class Decision:
         if "hidden" not in self._cache:
             fit = self.chosen_fit()
             self._cache["hidden"] = None if fit is None else coverage.hidden_lump_spot(
-                self._excess_over(fit), self.obs.xy[self.obs.exact], self.coverage, self.settings.none_coverage_mm)
+                self._excess_over(fit), self.obs.xy[self.obs.exact], self.coverage, self.none_reach_mm)
         return self._cache["hidden"]
 
     def _surprise_of_last(self) -> float:

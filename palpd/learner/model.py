@@ -54,7 +54,8 @@ class Learner(Decision):
         self.obs = Observations()
         self.hypotheses = Hypotheses(size_mm, min_contrast, self.noise_floor)
         # the covering lattice at the `none` reach: the first design is part of it, the rest fills holes
-        self.lattice = design.covering_lattice(size_mm, settings.none_coverage_mm)
+        self.none_reach_mm = design.none_reach(size_mm, settings.none_coverage_mm, settings.coverage_mm)
+        self.lattice = design.covering_lattice(size_mm, self.none_reach_mm)
         self.design = design.first_design(size_mm, self.lattice, settings.initial_points, seed)
         self.blocked = np.zeros(len(self.grid_xy), dtype=bool)
         self.coverage = coverage.Readings(self.grid_xy[self._candidates(COVERAGE_STEP_MM)], settings.min_spacing_mm)
