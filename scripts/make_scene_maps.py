@@ -15,7 +15,9 @@ relative measurement noise where a real map would have one:
 - textured-half.csv: an 80 × 40 mm tissue whose left part is 2.5× stiffer, the region running past three
   of the tissue's edges, its boundary a slanted line with a ~8 mm wide rise, and 5 % texture (the
   tissue's own spot-to-spot variation, as a real phantom's map has it) on a 2 mm grid;
-- textured-plain.csv: plain tissue, no lump, with 5 % texture on a 2 mm grid.
+- textured-plain.csv: plain tissue, no lump, with 5 % texture on a 2 mm grid;
+- touching-lumps.csv: touching-lumps' three lumps (5 mm, edges 2–4 mm apart, 6.7× the tissue, each with
+  the power-law edge the simulator gives a lump 2 mm deep) as a 1 mm grid would measure them, 2 % noise.
 """
 from __future__ import annotations
 
@@ -62,6 +64,15 @@ def textured_half(xy: np.ndarray) -> np.ndarray:
     return TISSUE * (1.0 + 1.5 / (1.0 + np.exp(-signed / 2.0)))
 
 
+def touching_lumps(xy: np.ndarray) -> np.ndarray:
+    """The largest of three lumps' rises at each spot, as the simulator combines lumps (drivers/sim/tissue.py)."""
+    rise = np.zeros(len(xy))
+    for cx, cy in ((-8.0, 0.0), (4.0, 0.0), (-1.0, 13.5)):
+        rho = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) / 5.0
+        rise = np.maximum(rise, (0.8 - TISSUE) / (1.0 + rho ** (4.0 * 5.0 / 3.0)))  # sharpness 4 r / (1 + depth)
+    return TISSUE + rise
+
+
 def write(name: str, xy: np.ndarray, k: np.ndarray) -> None:
     rows = ["x_mm,y_mm,stiffness_n_per_mm"] + [f"{x:.2f},{y:.2f},{v:.5f}" for (x, y), v in zip(xy, k)]
     (OUT / name).write_text("\n".join(rows) + "\n")
@@ -80,6 +91,9 @@ def main() -> None:
     write("textured-half.csv", xy, textured_half(xy) * (1.0 + rng.normal(0.0, 0.05, len(xy))))
     xy = grid(2.0)
     write("textured-plain.csv", xy, TISSUE * (1.0 + rng.normal(0.0, 0.05, len(xy))))
+    xy = grid(1.0)  # its own noise stream: added after the others, it leaves their noise as it was
+    noise = np.random.default_rng(12).normal(0.0, 0.02, len(xy))
+    write("touching-lumps.csv", xy, touching_lumps(xy) * (1.0 + noise))
 
 
 if __name__ == "__main__":

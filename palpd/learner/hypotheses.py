@@ -2,7 +2,8 @@
 
 Each update refits the parametric hypotheses from several starts: where it was
 last time (warm), from the one with one lump fewer plus a lump at the reading
-it explains worst, from the free-form map's regions, and (for ellipses) from
+it explains worst, from the one with one lump more without each of its lumps,
+from the free-form map's regions, and (for ellipses) from
 the circles stretched along each region's long axis. Counts grow while the
 evidence still rises (one beyond the best is always tried). The free-form GP
 level set is a candidate when its map holds a region backed by a stiff reading.
@@ -96,7 +97,8 @@ class Hypotheses:
             was = before.get(prev.name)
             surprised = was if self._surprised_contender(was, obs) else None
             fewer = [prev] + ([surprised] if surprised is not None and k > 1 else [])
-            fit = self._fit(family, obs, priors, lambda: self._circle_starts(fewer, obs, regions, k, priors),
+            more = _closer(before.get(f"circles:{k + 1}"), before.get(family.name))
+            fit = self._fit(family, obs, priors, lambda: self._circle_starts(fewer, obs, regions, k, priors, more),
                             max_starts, fresh=surprised is not None, thorough=thorough)
             if fit is None:
                 break
@@ -185,13 +187,16 @@ class Hypotheses:
         return bool(np.any(np.abs(obs.y[old.n:] - f) > evidence.SUPPORT_SIGMA * total))
 
     # -- starts -----------------------------------------------------------------------------------
-    def _circle_starts(self, fewer: list[Fit], obs, regions, k, priors) -> list[np.ndarray]:
+    def _circle_starts(self, fewer: list[Fit], obs, regions, k, priors, more: Fit | None = None) -> list[np.ndarray]:
         """One lump more than each fit of k − 1 (refitted now, and as it was before: a reading that
         surprised it pulls its refit towards a compromise, while the old fit plus a lump there explains
-        it), k-means groups of the stiff readings, and the free-form regions."""
+        it), one lump fewer than a fit of k + 1 that explained the readings closer (_dropped), k-means
+        groups of the stiff readings, and the free-form regions."""
         base = np.array([self.tissue_log, 0.0, 0.0])
         starts = [np.concatenate([fit.theta if k > 1 else base, lump]) for fit in fewer
                   for lump in self._new_lumps(fit, obs)]
+        if more is not None:
+            starts += _dropped(more)
         ellipses = self.fits.get(f"ellipse:{k - 1}")
         if ellipses is not None:
             starts += _split(ellipses)
@@ -392,6 +397,23 @@ def _resized(fit: Fit) -> list[np.ndarray]:
             theta[fit.family.lump_slice(j).start + 2] += math.log(factor)
             out.append(theta)
     return out
+
+
+def _closer(more: Fit | None, fit: Fit | None) -> Fit | None:
+    """The fit of one lump more, when it explained the readings closer than this count's fit (a smaller σ_w)."""
+    if more is None or more.family.kind != "circles":
+        return None
+    return more if fit is None or more.noise_sd < fit.noise_sd else None
+
+
+def _dropped(more: Fit) -> list[np.ndarray]:
+    """The fit of k + 1 lumps without each of its lumps in turn: counts are built up one lump at a time,
+    and a first lump grown over two real ones stays in every count's fit built on it (three touching lumps
+    read as a measured map: one circle over two of them, and three circles that kept it, its σ_w 6x the
+    floor, while four fitted to the floor, the fourth a sliver beside one of the three)."""
+    family, theta = more.family, more.theta
+    lumps = [theta[family.lump_slice(j)] for j in range(family.k)]
+    return [np.concatenate([theta[:3], *lumps[:j], *lumps[j + 1:]]) for j in range(family.k)]
 
 
 def _split(ellipses: Fit) -> list[np.ndarray]:
