@@ -94,17 +94,21 @@ def _region(xs, ys, gx, gy, inside: np.ndarray, area: float, peak: float) -> dic
 
 
 def compare(truth: list[dict], lumps: list[dict], size_mm=None) -> dict:
-    """Match each true lump to the nearest unmatched estimate; report errors and IoU (on the tissue, given its
-    size)."""
-    unmatched = list(range(len(lumps)))
+    """Match true lumps to estimates with the least total centre distance; report errors and IoU (on the tissue,
+    given its size). Matched in turn, each true lump taking the nearest estimate left, a scan that found a
+    6 mm lump and missed a 1.5 mm one was scored as the small one found 22 mm off and the large one missed."""
+    from scipy.optimize import linear_sum_assignment
+
+    distance = np.array([[math.dist(est["center_mm"], true["center_mm"]) for est in lumps] for true in truth])
+    rows, cols = linear_sum_assignment(distance.reshape(len(truth), len(lumps)))
+    match = dict(zip(rows.tolist(), cols.tolist()))
+    unmatched = [i for i in range(len(lumps)) if i not in match.values()]
     per_lump = []
-    for true in truth:
-        if not unmatched:
+    for t, true in enumerate(truth):
+        if t not in match:
             per_lump.append({"found": False})
             continue
-        best = min(unmatched, key=lambda i: math.dist(lumps[i]["center_mm"], true["center_mm"]))
-        unmatched.remove(best)
-        est = lumps[best]
+        est = lumps[match[t]]
         centre, radius = true["center_mm"], true["radius_mm"]
         if est.get("cut_by_edge") and size_mm is not None and not true.get("boundary_mm"):
             centre, radius = part_on_tissue(true, size_mm)  # what such a lump reports (a map's truth already is)

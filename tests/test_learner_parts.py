@@ -132,6 +132,23 @@ def test_the_evidence_picks_one_lump_not_two_two_not_one_and_none_on_flat_tissue
         assert hypotheses.choice(None, obs).chosen == chosen, (chosen, hypotheses.choice(None, obs))
 
 
+def test_a_missed_small_lump_is_scored_as_missed_not_as_the_found_one_far_off():
+    """True lumps are matched to estimates by the least total distance: matched in list order, the 1.5 mm lump
+    took the only estimate (over the 6 mm lump, 22 mm away) and the 6 mm lump was scored missed."""
+    def disc(x, y, r):
+        return {"center_mm": [x, y], "radius_mm": r,
+                "boundary_mm": [[x + r * math.cos(a), y + r * math.sin(a)] for a in np.linspace(0, 2 * math.pi, 73)]}
+
+    truth = [{"center_mm": [-15.0, 10.0], "radius_mm": 1.5}, {"center_mm": [5.0, -3.0], "radius_mm": 6.0}]
+    m = metrics.compare(truth, [disc(5.1, -3.0, 6.0)], (40.0, 40.0))
+    assert m["lumps_found"] == 1 and m["lumps_missed"] == 1 and m["false_lumps"] == 0
+    assert m["per_lump"][0] == {"found": False} and m["per_lump"][1]["found"]
+    assert m["max_center_error_mm"] == pytest.approx(0.1) and m["min_iou"] > 0.95
+    swapped = metrics.compare(truth, [disc(-14.0, 10.0, 1.5), disc(5.0, -2.0, 6.0), disc(20.0, 20.0, 1.0)], (40.0, 40.0))
+    assert swapped["lumps_found"] == 2 and swapped["false_lumps"] == 1 and swapped["max_center_error_mm"] == pytest.approx(1.0)
+    assert metrics.compare([], [disc(0.0, 0.0, 2.0)])["false_lumps"] == 1 and metrics.compare(truth, [])["lumps_missed"] == 2
+
+
 def test_map_truth_is_the_half_height_region_and_iou_compares_polygons(tmp_path):
     axis = np.arange(-30.0, 30.1, 1.0)
     rows = ["x_mm,y_mm,stiffness_n_per_mm"]
