@@ -100,7 +100,8 @@ def compare(truth: list[dict], lumps: list[dict], size_mm=None) -> dict:
     from scipy.optimize import linear_sum_assignment
 
     distance = np.array([[math.dist(est["center_mm"], true["center_mm"]) for est in lumps] for true in truth])
-    rows, cols = linear_sum_assignment(distance.reshape(len(truth), len(lumps)))
+    distance = np.nan_to_num(distance.reshape(len(truth), len(lumps)), nan=1e9, posinf=1e9)  # the solver takes no NaN
+    rows, cols = linear_sum_assignment(distance)
     match = dict(zip(rows.tolist(), cols.tolist()))
     unmatched = [i for i in range(len(lumps)) if i not in match.values()]
     per_lump = []
