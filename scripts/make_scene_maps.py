@@ -65,11 +65,13 @@ def textured_half(xy: np.ndarray) -> np.ndarray:
 
 
 def touching_lumps(xy: np.ndarray) -> np.ndarray:
-    """The largest of three lumps' rises at each spot, as the simulator combines lumps (drivers/sim/tissue.py)."""
+    """The largest of three lumps' rises at each spot, with the simulator's own profile (drivers/sim/tissue.py)."""
+    from drivers.sim.tissue import lump_profile, lump_sharpness
+
     rise = np.zeros(len(xy))
     for cx, cy in ((-8.0, 0.0), (4.0, 0.0), (-1.0, 13.5)):
-        rho = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy) / 5.0
-        rise = np.maximum(rise, (0.8 - TISSUE) / (1.0 + rho ** (4.0 * 5.0 / 3.0)))  # sharpness 4 r / (1 + depth)
+        r_mm = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy)
+        rise = np.maximum(rise, (0.8 - TISSUE) * lump_profile(r_mm, 5.0, lump_sharpness(5.0, 2.0)))
     return TISSUE + rise
 
 
