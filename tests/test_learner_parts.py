@@ -416,10 +416,12 @@ def test_asking_for_the_estimate_between_readings_changes_nothing_the_learner_de
     assert courses[0] == courses[1]
 
 
-def test_the_lump_whose_edge_no_reading_touched_is_probed_before_a_gap_left_on_another():
+def test_the_lump_whose_edge_no_reading_touched_is_probed_first_and_a_lump_still_unsure_before_a_pinned_one():
     """Two lumps: the first read all round its edge but for a 135° stretch, the second read only at its centre.
     The edge to read next is the second's: taken lump by lump, the first lump's gap came first, and with four
-    lumps the budget ran out while the last, never read at its edge, was reported at a third of its radius."""
+    lumps the budget ran out while the last, never read at its edge, was reported at a third of its radius.
+    But a lump whose posterior sd is over the tolerance comes before one already pinned (four lumps, seed 0: six
+    probes went to gaps on lumps at 0.03 mm sd while one at 0.9 mm met the budget 0.8 mm off)."""
     from types import SimpleNamespace
 
     from palpd.learner import shapes
@@ -439,6 +441,14 @@ def test_the_lump_whose_edge_no_reading_touched_is_probed_before_a_gap_left_on_a
     where = uncovered_edge(fit, np.vstack([readings, second]), (60.0, 60.0), 2.0)
     assert where is not None and math.dist(where, (-12.0, 0.0)) == pytest.approx(6.0, abs=1.0)
     assert 0.0 < math.degrees(math.atan2(where[1], where[0] + 12.0)) < 135.0, where
+    # a lump still unsure by its posterior sd goes first: the first lump's 135° gap before the second's whole edge
+    where = uncovered_edge(fit, readings, (60.0, 60.0), 2.0, unsure=np.array([True, False]))
+    assert where is not None and math.dist(where, (-12.0, 0.0)) == pytest.approx(6.0, abs=1.0), where
+    assert 0.0 < math.degrees(math.atan2(where[1], where[0] + 12.0)) < 135.0, where
+    # both unsure, or neither: the widest gap, as without
+    for unsure in ([True, True], [False, False]):
+        where = uncovered_edge(fit, readings, (60.0, 60.0), 2.0, unsure=np.array(unsure))
+        assert where is not None and math.dist(where, (14.0, 5.0)) == pytest.approx(5.0, abs=1.0), (unsure, where)
 
 
 

@@ -269,7 +269,11 @@ class Decision:
         readings = self.obs.xy[self.obs.kind >= 0]  # exact readings and lower bounds
         spacing = self.settings.min_spacing_mm
         centre = coverage.unconfirmed_centre(fit, readings, spacing)
-        return centre if centre is not None else coverage.uncovered_edge(fit, readings, self.size_mm, spacing)
+        if centre is not None:
+            return centre
+        lumps = describe.lumps_of(fit, None, self.size_mm)  # every lump, in the fit's order (no τ filter)
+        unsure = np.array([_sds(lump) > self.settings.tolerance_mm for lump in lumps])
+        return coverage.uncovered_edge(fit, readings, self.size_mm, spacing, unsure)
 
     def _unfelt(self) -> np.ndarray | None:
         """The centre of a lump that a hypothesis the evidence prefers needs and no reading felt
