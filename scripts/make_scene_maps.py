@@ -18,9 +18,17 @@ relative measurement noise where a real map would have one:
 - textured-plain.csv: plain tissue, no lump, with 5 % texture on a 2 mm grid;
 - touching-lumps.csv: touching-lumps' three lumps (5 mm, edges 2–4 mm apart, 6.7× the tissue, each with
   the power-law edge the simulator gives a lump 2 mm deep) as a 1 mm grid would measure them, 2 % noise.
+
+    .venv/bin/python scripts/make_scene_maps.py --regions DIR
+
+writes seven more maps with their scenes into DIR, none of them shipped: large smooth stiff regions unlike
+half-stiff's (a quadrant, a straight diagonal half with a sharp rise, a band across the tissue, a broad
+Gaussian rise, half-stiff on a coarse 3 mm grid with 4 % noise, two thirds of the tissue, two strips along
+opposite edges), to try the learner on what it was not developed on (README, "Latest").
 """
 from __future__ import annotations
 
+import argparse
 import math
 from pathlib import Path
 
@@ -75,12 +83,55 @@ def touching_lumps(xy: np.ndarray) -> np.ndarray:
     return TISSUE + rise
 
 
-def write(name: str, xy: np.ndarray, k: np.ndarray) -> None:
+def _rise(signed: np.ndarray, width_mm: float) -> np.ndarray:
+    return 1.0 / (1.0 + np.exp(-signed / width_mm))
+
+
+# name: (grid step mm, relative noise, k(xy)); in this order (one noise stream runs through them)
+REGIONS = {
+    "quadrant": (1.5, 0.02, lambda p: TISSUE * (1 + 1.5 * _rise(p[:, 0] - 5, 1.5) * _rise(p[:, 1] - 5, 1.5))),
+    "diagonal": (1.5, 0.02, lambda p: TISSUE * (1 + 2.0 * _rise((p[:, 0] + p[:, 1]) / math.sqrt(2) - 3, 0.8))),
+    "stripe": (2.0, 0.02, lambda p: TISSUE * (1 + 1.5 * _rise(8 - np.abs(p[:, 1] - 2), 1.2))),
+    "blob": (1.5, 0.02, lambda p: TISSUE * (1 + 2.0 * np.exp(-((p[:, 0] - 5) ** 2 + (p[:, 1] + 3) ** 2) / 288.0))),
+    "coarse-half": (3.0, 0.04, lambda p: half_stiff(p)),
+    "two-thirds": (1.5, 0.02, lambda p: TISSUE * (1 + 1.5 * _rise(p[:, 0] + 10 - 0.2 * p[:, 1], 1.5))),
+    "two-strips": (1.5, 0.02, lambda p: TISSUE * (1 + 1.5 * _rise(np.abs(p[:, 0]) - 15, 1.5))),
+}
+REGION_SCENE = """name = "{name}"
+seed = 4
+
+[tissue]
+size_mm = [60.0, 60.0]
+stiffness_n_per_mm = 0.12
+map = "{name}.csv"
+
+[sensor]
+noise_n = 0.01
+tilt = true
+"""
+
+
+def write(name: str, xy: np.ndarray, k: np.ndarray, out: Path = OUT) -> None:
     rows = ["x_mm,y_mm,stiffness_n_per_mm"] + [f"{x:.2f},{y:.2f},{v:.5f}" for (x, y), v in zip(xy, k)]
-    (OUT / name).write_text("\n".join(rows) + "\n")
+    (out / name).write_text("\n".join(rows) + "\n")
+
+
+def write_regions(out: Path) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(7)
+    for name, (step_mm, noise, k_at) in REGIONS.items():
+        xy = grid(step_mm)
+        write(f"{name}.csv", xy, k_at(xy) * (1.0 + noise * rng.standard_normal(len(xy))), out)
+        (out / f"{name}.toml").write_text(REGION_SCENE.format(name=name))
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--regions", type=Path, metavar="DIR", help="write the unshipped stiff-region maps here")
+    args = parser.parse_args()
+    if args.regions:
+        write_regions(args.regions)
+        return
     rng = np.random.default_rng(11)
     OUT.mkdir(parents=True, exist_ok=True)
     xy = grid(1.5)
