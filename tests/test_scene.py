@@ -143,3 +143,24 @@ def test_the_random_scenes_the_learner_is_tried_on_are_valid_reproducible_and_ke
             assert 2.5 <= lump.stiffness_n_per_mm / scene.tissue.stiffness_n_per_mm <= 8.0
             for other in scene.lump[:i]:
                 assert math.dist(lump.center_mm, other.center_mm) > lump.radius_mm + other.radius_mm + 6.0
+
+
+def test_the_region_maps_the_learner_is_tried_on_load_and_hold_a_stiff_region(tmp_path):
+    """scripts/make_scene_maps.py --regions DIR (README, "Not yet decided right"): seven scenes that load, each
+    map stiffer than its tissue over a tenth of it or more, and the same bytes when written again."""
+    import subprocess
+    import sys
+
+    import numpy as np
+
+    for out in (tmp_path / "a", tmp_path / "b"):
+        subprocess.run([sys.executable, str(ROOT / "scripts" / "make_scene_maps.py"), "--regions", str(out)],
+                       check=True, capture_output=True, timeout=60)
+    scenes = sorted((tmp_path / "a").glob("*.toml"))
+    assert len(scenes) == 7
+    for path in scenes:
+        scene = load_scene(path)
+        csv = path.with_suffix(".csv")
+        assert csv.read_bytes() == (tmp_path / "b" / csv.name).read_bytes()
+        k = np.loadtxt(csv, delimiter=",", skiprows=1)[:, 2]
+        assert np.mean(k > 1.3 * scene.tissue.stiffness_n_per_mm) >= 0.1, path.name
