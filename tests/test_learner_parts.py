@@ -132,6 +132,32 @@ def test_the_evidence_picks_one_lump_not_two_two_not_one_and_none_on_flat_tissue
         assert hypotheses.choice(None, obs).chosen == chosen, (chosen, hypotheses.choice(None, obs))
 
 
+@pytest.mark.parametrize("kind, second, is_apart", [
+    ("circles", (12.0, 0.0, 5.0), True),    # two 5 mm discs 2 mm apart edge to edge
+    ("circles", (10.0, 0.0, 5.0), True),    # touching
+    ("circles", (7.0, 0.0, 5.0), True),     # sharing 19 % of each one's area: blurred edges, still two lumps
+    ("circles", (5.0, 0.0, 5.0), False),    # sharing 39 %
+    ("circles", (1.0, 1.0, 2.0), False),    # a small disc inside a large one
+    ("ellipses", (6.0, 0.0, 5.0), False),   # two 16 x 1.6 mm ellipses, one 6 mm along the other's axis
+    ("ellipses", (0.0, 4.0, 5.0), True),    # side by side 4 mm apart: the centres closer than the first's length
+])
+def test_lumps_laid_over_one_another_are_not_separate_lumps(kind, second, is_apart):
+    """`evidence.apart`: two lumps sharing more than a fifth of the smaller one's area (inside their 50 %
+    boundaries) are not separate lumps, and such a fit is never the one chosen; two lumps merely touching
+    are."""
+    from palpd.learner import evidence, shapes
+
+    family = shapes.Family(kind, 2, 30.0)
+    stretch = (math.log(10.0), 0.0) if kind == "ellipses" else ()  # axes R·e^{±ε/2}: 16 x 1.6 mm at R = 5
+
+    def lump(x, y, radius):
+        return [x, y, math.log(radius), *stretch, 0.0, math.log(4.0), 0.0]
+
+    theta = np.array([0.0, 0.0, 0.0, *lump(0.0, 0.0, 5.0), *lump(*second)])
+    assert evidence.apart(family, theta) is is_apart
+    assert evidence.apart(shapes.Family(kind, 1, 30.0), theta[:3 + family.per_lump])
+
+
 def test_a_missed_small_lump_is_scored_as_missed_not_as_the_found_one_far_off():
     """True lumps are matched to estimates by the least total distance: matched in list order, the 1.5 mm lump
     took the only estimate (over the 6 mm lump, 22 mm away) and the 6 mm lump was scored missed."""

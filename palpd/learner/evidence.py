@@ -18,7 +18,9 @@ the simplest model wins unless the data clearly ask for more.
 A lump must also be felt: removing it must change the prediction at some exact
 reading by at least SUPPORT_SIGMA of that reading's noise (at the noise floor). A fit that needs an
 unfelt lump is not a hypothesis the data support (it is the simpler one with an
-invisible extra), and is left out.
+invisible extra), and is left out. Nor is a fit whose lumps share more than SHARED_AREA of the smaller
+one's area (`apart`) an answer: lumps laid over one another to tile a stiff region are one region of a
+shape no lump of the family makes, the free-form map's to describe, not k lumps (hypotheses.choice).
 """
 from __future__ import annotations
 
@@ -38,6 +40,7 @@ from palpd.learner.observations import AT_LEAST, EXACT, Observations
 SUPPORT_SIGMA = 3.0
 ADEQUATE_NOISE = 2.0  # σ_w beyond this multiple of the floor: the model misses something (decision.py)
 OVERLAP_MM = 0.25  # softness of the rule that lumps do not sit inside one another
+SHARED_AREA = 0.2  # two lumps sharing more of the smaller's area are one region (`apart`)
 HOPELESS = 30.0  # nats: a start this far below the height a start before it reached is dropped (after GIVE_UP_AFTER steps)
 GIVE_UP_AFTER = 8
 RIDGE_NATS = 0.5  # a mode this little below the chosen one is as likely as the points 1 sd from it
@@ -255,6 +258,38 @@ def supported(family: shapes.Family, theta: np.ndarray, obs: Observations, noise
     σ_w, which an unexplained lump elsewhere inflates), or leaves a lower bound ('too stiff') that far
     above the prediction: a lump whose core readings all hit the force limit is felt there."""
     return not unfelt(family, theta, obs, noise)
+
+
+def apart(family: shapes.Family, theta: np.ndarray) -> bool:
+    """No two lumps share more than SHARED_AREA of the smaller one's area (inside their 50 % boundaries):
+    discs or ellipses laid over one another to tile a stiff region are one region of a shape no lump of
+    the family makes (the free-form map's to describe), not k lumps. Lumps that merely touch, or whose
+    blurred edges overlap a little, are apart (two 5 mm discs 7 mm apart share 19 %)."""
+    if family.k < 2:
+        return True
+    ellipse = family.kind == "ellipses"
+    lumps = [theta[family.lump_slice(j)] for j in range(family.k)]
+    for j, m in zip(*_pairs(family.k)):
+        small, other = sorted((lumps[j], lumps[m]), key=lambda params: params[2])
+        major, minor, angle = shapes.axes_and_angle(small, ellipse)
+        c, s = math.cos(math.radians(angle)), math.sin(math.radians(angle))
+        ex, ey = major * _UNIT_DISC[:, 0], minor * _UNIT_DISC[:, 1]
+        points = np.column_stack([small[0] + c * ex - s * ey, small[1] + s * ex + c * ey])
+        inside_other = shapes.log_rho2(other, points, ellipse)[0] < 0.0
+        if inside_other.mean() > SHARED_AREA:
+            return False
+    return True
+
+
+def _sunflower(n: int) -> np.ndarray:
+    """n points spread evenly over the unit disc (Vogel's spiral): equal areas, so a fraction of them is a
+    fraction of the area."""
+    i = np.arange(n) + 0.5
+    r, t = np.sqrt(i / n), i * math.pi * (3.0 - math.sqrt(5.0))
+    return np.column_stack([r * np.cos(t), r * np.sin(t)])
+
+
+_UNIT_DISC = _sunflower(256)
 
 
 def unfelt(family: shapes.Family, theta: np.ndarray, obs: Observations, noise: float) -> list[int]:

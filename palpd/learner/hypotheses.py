@@ -45,9 +45,9 @@ class Region:
 @dataclass
 class Choice:
     chosen: str
-    weight: float
-    runner_up: str | None
-    weights: dict[str, float]
+    weight: float  # its share among the hypotheses whose lumps are apart (what may be chosen)
+    runner_up: str | None  # the next of those
+    weights: dict[str, float]  # every supported hypothesis's, apart or not: the rivals
 
     def as_dict(self) -> dict:
         return {"chosen": self.chosen, "weight": round(self.weight, 4), "runner_up": self.runner_up}
@@ -280,7 +280,14 @@ class Hypotheses:
     def choice(self, free_form_log_evidence: float | None, obs: Observations) -> Choice:
         """Posterior weights of the supported hypotheses (and the free-form map's, when it has a region),
         each parametric one's evidence checked against its posterior (posterior.py) from the most
-        likely down, until the rest could not weigh anything whatever their check says."""
+        likely down, until the rest could not weigh anything whatever their check says.
+
+        The chosen one is the most likely whose lumps are apart (evidence.apart), its weight its share
+        among those: lumps laid over one another to tile a stiff region are no count of lumps (a stiff
+        quadrant was chosen as two circles, one inside the other, and two thirds of the tissue as three
+        long ellipses at 0.98). Such a fit stays among the weights, a rival the next readings tell apart
+        from the chosen one (decision.py): where it predicts unlike the chosen model, a reading is worth
+        taking (two touching lumps read around but not between were first two overlapping circles)."""
         candidates = {name: fit.log_evidence for name, fit in self.fits.items() if fit.supported}
         best = -math.inf
         if free_form_log_evidence is not None:
@@ -291,13 +298,16 @@ class Hypotheses:
             candidates[name] = self._evidence_checked(name, obs).log_evidence
             best = max(best, candidates[name])
         names = sorted(candidates, key=lambda m: -candidates[m])
-        self.unfelt_centre = self._unfelt_centre(candidates[names[0]], obs)
         top = candidates[names[0]]
         raw = {m: math.exp(candidates[m] - top) for m in names}
         total = sum(raw.values())
         weights = {m: v / total for m, v in raw.items()}
         self.weights = weights
-        return Choice(names[0], weights[names[0]], names[1] if len(names) > 1 else None, weights)
+        separate = [m for m in names if m == "free-form" or evidence.apart(self.fits[m].family, self.fits[m].theta)]
+        chosen = separate[0]
+        self.unfelt_centre = self._unfelt_centre(candidates[chosen], obs)
+        share = sum(weights[m] for m in separate)
+        return Choice(chosen, weights[chosen] / share, separate[1] if len(separate) > 1 else None, weights)
 
     def _unfelt_centre(self, chosen_log_evidence: float, obs: Observations) -> np.ndarray | None:
         """The centre of a lump no reading feels yet, in a hypothesis the evidence prefers to the chosen
