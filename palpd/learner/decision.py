@@ -229,7 +229,7 @@ class Decision:
             if fit is None or weight < DECISIVE_WEIGHT or fit.noise_sd > adequate_sd:
                 continue
             rival_mean, rival_var = self._moments(fit, cells)
-            odds = math.log(self.choice.weight / weight)
+            odds = math.log(self.choice.weights[chosen] / weight)  # both among every rival (hypotheses.Choice)
             overturn = 0.5 * (mean - rival_mean) ** 2 / (var + rival_var + noise) - odds
             i = int(np.argmax(overturn))
             if overturn[i] > best:
