@@ -268,7 +268,7 @@ def apart(family: shapes.Family, theta: np.ndarray) -> bool:
     if family.k < 2:
         return True
     ellipse = family.kind == "ellipses"
-    lumps = [theta[family.lump_slice(j)] for j in range(family.k)]
+    lumps = shapes.lumps_of(family, theta)
     for j, m in zip(*_pairs(family.k)):
         small, other = sorted((lumps[j], lumps[m]), key=lambda params: params[2])
         major, minor, angle = shapes.axes_and_angle(small, ellipse)
