@@ -8,7 +8,11 @@
   is reported the most: for a parametric model the summed variance of every
   centre coordinate and radius (or axis), |W Σ g|² / (gᵀ Σ g + σ²) with g the
   model's gradient there (the lumps' boundaries, naturally); for the free-form
-  map Bryan et al.'s straddle, z·σ − |μ − τ|, at each region's 50 % level.
+  map the same for its regions' boundaries: the variance a reading takes off
+  the boundary's position, δ² = σ²/|∇(μ − τ)|², along it (the quantity its stop
+  rule reads), through the GP's posterior covariance between the reading and
+  each stretch of boundary. (Bryan et al.'s straddle, z·σ − |μ − τ|, where no
+  region has a boundary yet.)
 
 Every score is divided by the robot time the move adds (travel at the travel
 speed, in units of one palpation), and cells closer than the minimum spacing to
@@ -38,6 +42,13 @@ def boundary_gain(fit, xy: np.ndarray, noise_var: float, size_mm=None) -> np.nda
         return np.zeros(len(xy))
     projected = jac @ (fit.cov @ w.T)  # (cells × quantities): cov(quantity, reading)
     return (projected**2).sum(axis=1) / (var + noise_var)
+
+
+def boundary_variance_gain(cov: np.ndarray, weights: np.ndarray, var: np.ndarray, noise_var: float) -> np.ndarray:
+    """Boundary position variance (mm²) one reading at each cell takes off: Σ_b w_b cov(b, c)² / (var_c + σ²),
+    cov (stretches × cells) the field's posterior covariance, w_b the stretch's mm² per unit of field variance
+    (δ_b²/σ_b², times its share of the boundary's length), var_c the field's variance at the cell."""
+    return weights @ cov**2 / (var + noise_var)
 
 
 def disagreement(predictions: list[tuple[float, np.ndarray, np.ndarray]], noise_var: float) -> np.ndarray:

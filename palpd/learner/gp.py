@@ -108,6 +108,19 @@ class IncrementalGP:
     def std(self) -> np.ndarray:
         return np.sqrt(np.maximum(self.var, 1e-12 * self.hyper.signal_var))
 
+    def covariance(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Posterior covariance of the latent log stiffness between grid cells a and b (index arrays):
+        the prior kernel less V[:, a]ᵀ V[:, b], V = L⁻¹ K(points, grid) as kept for the mean and variance."""
+        self._flush()
+        prior = kernel(self.grid_xy[a], self.grid_xy[b], self.hyper)
+        if not self.n:
+            return prior
+        return prior - self._columns(a).T @ self._columns(b)
+
+    def _columns(self, cells: np.ndarray) -> np.ndarray:
+        """V's columns for the cells (n × len(cells)), in float64."""
+        return np.concatenate([block[:, cells] for block in self._blocks])[:self.n].astype(np.float64)
+
     def log_marginal_likelihood(self) -> float:
         """log p(y | kernel): the evidence of the free-form model at this kernel."""
         n = self.n

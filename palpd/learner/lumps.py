@@ -140,6 +140,23 @@ def _boundary(m: Map, region: np.ndarray, others: np.ndarray) -> np.ndarray | No
     return np.clip(line, [m.xs[0], m.ys[0]], [m.xs[-1], m.ys[-1]])
 
 
+def boundary_stretches(m: Map, polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """The boundary's stretches inside the area (those along its edge do not move): their midpoints, lengths
+    ds and how far each moves across itself, δ = σ / |∇(μ − τ)| (capped at the area's size); None if none."""
+    a, b = polygon[:-1], polygon[1:]
+    mid, ds = 0.5 * (a + b), np.hypot(*(b - a).T)
+    margin = 0.5 * m.cell_mm
+    moving = ((mid[:, 0] > m.xs[0] + margin) & (mid[:, 0] < m.xs[-1] - margin)
+              & (mid[:, 1] > m.ys[0] + margin) & (mid[:, 1] < m.ys[-1] - margin) & (ds > 0))
+    if not moving.any():
+        return None
+    mid, ds = mid[moving], ds[moving]
+    gy, gx = np.gradient(m.mean - m.tau, m.cell_mm)
+    slope = np.maximum(np.hypot(m.at(gx, mid), m.at(gy, mid)), 1e-12)
+    span = max(m.xs[-1] - m.xs[0], m.ys[-1] - m.ys[0])
+    return mid, ds, np.minimum(m.at(m.std, mid) / slope, span)
+
+
 def _region_uncertainty(m: Map, polygon: np.ndarray, centre: np.ndarray, area: float) -> tuple[float, float, float]:
     """The sd of the region's centroid and equal-area radius, and the RMS sd of its boundary's position.
 
@@ -152,18 +169,11 @@ def _region_uncertainty(m: Map, polygon: np.ndarray, centre: np.ndarray, area: f
     to the boundary (what was reported before) has no centre to speak of where the boundary is nearly
     straight, as across a stiff half of the tissue. Stretches along the area's edge do not move."""
     floor = m.cell_mm / math.sqrt(12.0)  # the grid cannot say better than this
-    a, b = polygon[:-1], polygon[1:]
-    mid, ds = 0.5 * (a + b), np.hypot(*(b - a).T)
-    margin = 0.5 * m.cell_mm
-    moving = ((mid[:, 0] > m.xs[0] + margin) & (mid[:, 0] < m.xs[-1] - margin)
-              & (mid[:, 1] > m.ys[0] + margin) & (mid[:, 1] < m.ys[-1] - margin) & (ds > 0))
-    if not moving.any():
+    stretches = boundary_stretches(m, polygon)
+    if stretches is None:
         return floor, floor, floor
-    mid, ds = mid[moving], ds[moving]
-    gy, gx = np.gradient(m.mean - m.tau, m.cell_mm)
-    slope = np.maximum(np.hypot(m.at(gx, mid), m.at(gy, mid)), 1e-12)
-    span = max(m.xs[-1] - m.xs[0], m.ys[-1] - m.ys[0])
-    spread = np.minimum(m.at(m.std, mid) / slope, span) ** 2 * ds  # δ² ds
+    mid, ds, delta = stretches
+    spread = delta**2 * ds  # δ² ds
     length = min(m.length_mm, float(ds.sum()))  # a boundary shorter than ℓ moves as one
     area_sd = math.sqrt(length * float(spread.sum()))
     centre_sd = math.sqrt(length * float(np.sum((mid - centre) ** 2, axis=1) @ spread)) / area
