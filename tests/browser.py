@@ -5,8 +5,10 @@ import base64
 import contextlib
 import itertools
 import json
+import os
 import shutil
 import subprocess
+import tempfile
 import time
 import urllib.request
 from pathlib import Path
@@ -18,10 +20,13 @@ CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 
 class HeadlessChromium:
     def __init__(self, url: str, profile: Path, width: int = 1100, height: int = 820) -> None:
+        # Its scratch directory (a socket in it: the path must stay short) removed on close, not left in /tmp.
+        self._scratch = tempfile.mkdtemp(prefix="palpd-chromium-")
         self.process = subprocess.Popen(
             [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run", "--hide-scrollbars",
              f"--user-data-dir={profile}", "--remote-debugging-port=0", f"--window-size={width},{height}", url],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            env={**os.environ, "TMPDIR": self._scratch})
         port = self._devtools_port(profile / "DevToolsActivePort")
         with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10) as answer:
             page = next(t for t in json.load(answer) if t["type"] == "page")
@@ -68,3 +73,4 @@ class HeadlessChromium:
         self._open.close()
         self.process.kill()
         self.process.wait(10)
+        shutil.rmtree(self._scratch, ignore_errors=True)
