@@ -146,7 +146,7 @@ def test_the_random_scenes_the_learner_is_tried_on_are_valid_reproducible_and_ke
 
 
 def test_the_region_maps_the_learner_is_tried_on_load_and_hold_a_stiff_region(tmp_path):
-    """scripts/make_scene_maps.py --regions DIR (README, "Not yet decided right"): seven scenes that load, each
+    """scripts/make_scene_maps.py --regions DIR (README, "Latest" and "Still open"): seven scenes that load, each
     map stiffer than its tissue over a tenth of it or more, and the same bytes when written again."""
     import subprocess
     import sys
