@@ -25,6 +25,13 @@ writes seven more maps with their scenes into DIR, none of them shipped: large s
 half-stiff's (a quadrant, a straight diagonal half with a sharp rise, a band across the tissue, a broad
 Gaussian rise, half-stiff on a coarse 3 mm grid with 4 % noise, two thirds of the tissue, two strips along
 opposite edges), to try the learner on what it was not developed on (README, "Latest").
+
+    .venv/bin/python scripts/make_scene_maps.py --profiles DIR
+
+writes seven more, lumps whose profiles the simulator does not make (a cone, two Gaussian bumps, a flat
+top with a linear ramp, an ellipse ending near the tissue's edge, a stiff region around a corner of an
+80 × 60 mm tissue, a lump on a background that stiffens across the tissue) and plain tissue with 2 %
+noise: the same kind of try (README, "Latest").
 """
 from __future__ import annotations
 
@@ -97,11 +104,33 @@ REGIONS = {
     "two-thirds": (1.5, 0.02, lambda p: TISSUE * (1 + 1.5 * _rise(p[:, 0] + 10 - 0.2 * p[:, 1], 1.5))),
     "two-strips": (1.5, 0.02, lambda p: TISSUE * (1 + 1.5 * _rise(np.abs(p[:, 0]) - 15, 1.5))),
 }
+# Lumps of profiles the simulator does not make (its lumps are Hill profiles, drivers/sim/tissue.py): name:
+# (tissue size mm, grid step mm, relative noise, k(xy)), in this order (one noise stream runs through them)
+PROFILES = {
+    # a cone: the stiffness rises linearly to a point at the centre; half height 7 mm out
+    "cone": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.48 * np.clip(1 - np.hypot(p[:, 0] - 6, p[:, 1] + 4) / 14, 0, 1)),
+    # two Gaussian bumps, sd 4 and 6 mm, 5.8x and 3.8x the tissue
+    "two-bumps": ((60, 60), 1.5, 0.02, lambda p: TISSUE + np.maximum(
+        0.58 * np.exp(-((p[:, 0] + 14) ** 2 + (p[:, 1] - 10) ** 2) / 32.0),
+        0.33 * np.exp(-((p[:, 0] - 12) ** 2 + (p[:, 1] + 12) ** 2) / 72.0))),
+    # a flat top and a linear ramp 3 mm wide, half height 9.5 mm out
+    "plateau": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.38 * np.clip((11 - np.hypot(p[:, 0] + 5, p[:, 1] + 3)) / 3, 0, 1)),
+    # an ellipse 15 x 6 mm at 70 degrees whose end comes within 5 mm of the tissue's edge
+    "ellipse-at-edge": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.58 / (1 + np.hypot(
+        (0.342 * (p[:, 0] - 20) + 0.940 * (p[:, 1] - 2)) / 15, (-0.940 * (p[:, 0] - 20) + 0.342 * (p[:, 1] - 2)) / 6) ** 6)),
+    # a stiff region around one corner of an 80 x 60 mm tissue, on a 2 mm grid with 3 % noise
+    "corner": ((80, 60), 2.0, 0.03, lambda p: TISSUE * (1 + 1.8 * _rise(35 - np.hypot(p[:, 0] - 40, p[:, 1] - 30), 2.0))),
+    # a lump 5x stiffer than a background that itself stiffens 1.3x across the tissue
+    "sloped-lump": ((60, 60), 1.5, 0.02, lambda p: TISSUE * np.exp(0.125 * p[:, 0] / 30) * (
+        1 + 4 / (1 + (np.hypot(p[:, 0] - 8, p[:, 1] - 9) / 6) ** 8))),
+    # no lump: plain tissue with 2 % noise on a 1.5 mm grid
+    "plain": ((60, 60), 1.5, 0.02, lambda p: np.full(len(p), TISSUE)),
+}
 REGION_SCENE = """name = "{name}"
 seed = 4
 
 [tissue]
-size_mm = [60.0, 60.0]
+size_mm = [{width:.1f}, {height:.1f}]
 stiffness_n_per_mm = 0.12
 map = "{name}.csv"
 
@@ -117,20 +146,29 @@ def write(name: str, xy: np.ndarray, k: np.ndarray, out: Path = OUT) -> None:
 
 
 def write_regions(out: Path) -> None:
+    write_maps(out, {name: ((60, 60), *rest) for name, rest in REGIONS.items()})
+
+
+def write_maps(out: Path, maps: dict) -> None:
+    """Each map's CSV and a scene that palpates it, into `out`."""
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(7)
-    for name, (step_mm, noise, k_at) in REGIONS.items():
-        xy = grid(step_mm)
+    for name, ((width, height), step_mm, noise, k_at) in maps.items():
+        xy = grid(step_mm, (width / 2.0, height / 2.0))
         write(f"{name}.csv", xy, k_at(xy) * (1.0 + noise * rng.standard_normal(len(xy))), out)
-        (out / f"{name}.toml").write_text(REGION_SCENE.format(name=name))
+        (out / f"{name}.toml").write_text(REGION_SCENE.format(name=name, width=width, height=height))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--regions", type=Path, metavar="DIR", help="write the unshipped stiff-region maps here")
+    parser.add_argument("--profiles", type=Path, metavar="DIR", help="write the unshipped lump-profile maps here")
     args = parser.parse_args()
-    if args.regions:
-        write_regions(args.regions)
+    if args.regions or args.profiles:
+        if args.regions:
+            write_regions(args.regions)
+        if args.profiles:
+            write_maps(args.profiles, PROFILES)
         return
     rng = np.random.default_rng(11)
     OUT.mkdir(parents=True, exist_ok=True)

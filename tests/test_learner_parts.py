@@ -849,3 +849,37 @@ def test_a_satellite_hole_probed_without_a_reading_is_not_asked_for_again():
     learner.observe(tuple(hole), None, outcome="rejected")
     again = learner._satellite_hole()
     assert again is None or math.dist(again, hole) > 7.5
+
+
+def test_a_gradual_lump_is_read_at_its_top_before_its_half_height_radius_stands():
+    """Fourteen readings recorded from a simulated active scan of gradual-lump (seed 2: a Gaussian rise, sd
+    7 mm, its half-height radius 8.25 mm), the nearest 4 mm from its centre (0.47 of the radius fitted),
+    where it is at 85 % of its height. The family's profile drew the top from the readings farther out, a plateau
+    a little lower than it is, and the half-height with it: the scan stopped there, the radius 0.41 mm
+    large at a stated sd of 0.2 mm. The top is read first (the readings leave the edge's sharpness and tail
+    loose enough that 90 % of the height may lie nearer than 0.47), and the radius lands within 0.1 mm."""
+    from palpd.config import Settings
+    from palpd.learner.planner import make_learner
+
+    recorded = [((7.5, -8), 0.13581, 0.000388), ((22.5, -24), 0.11961, 0.000377), ((-7.5, -24), 0.12044, 0.000356),
+                ((-22.5, -8), 0.12165, 0.000364), ((-7.5, 8), 0.49222, 0.000399), ((7.5, 24), 0.12418, 0.000374),
+                ((22.5, 8), 0.11948, 0.000406), ((-22.5, 24), 0.11986, 0.000378), ((2, 14), 0.27900, 0.000380),
+                ((-22.5, -24), 0.12021, 0.000374), ((22.5, 24), 0.12046, 0.000373), ((-2, -3), 0.30459, 0.000366),
+                ((5, 4), 0.30506, 0.000398), ((-11, 1), 0.32721, 0.000415)]
+    centre, sd_mm, tissue, top = (-4.0, 6.0), 7.0, 0.12, 0.56
+
+    def k_at(xy):
+        return tissue + (top - tissue) * math.exp(-math.dist(xy, centre) ** 2 / (2.0 * sd_mm**2))
+
+    learner = make_learner(Settings(), (60.0, 60.0), 2)
+    for xy, k, sd in recorded:
+        learner.observe(xy, k, sd)
+    assert learner.model()["chosen"] == "circles:1", "the case needs the one circle chosen"
+    first = learner.next_probe()
+    assert first is not None and math.dist(first, centre) <= 1.5, first
+    while (xy := learner.next_probe()) is not None:
+        learner.observe(xy, k_at(xy), 0.001 * k_at(xy))
+    (lump,) = learner.lumps()
+    half_height_radius = sd_mm * math.sqrt(2.0 * math.log(2.0))
+    assert abs(lump.radius_mm - half_height_radius) <= 0.1 and math.dist(lump.center_mm, centre) <= 0.1, lump
+    assert learner.points <= 20

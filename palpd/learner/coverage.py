@@ -9,7 +9,9 @@ its boundary, or within the probe spacing of a lump smaller than that) and its
 edge band (where its profile is between 10 % and 90 % of its height, widened by
 the probe spacing) holds readings on every side: no gap of a third of a turn or
 more between them, around its own axes; the part of the edge outside the
-palpable area needs none. These say where to probe first.
+palpable area needs none; then its top must have been read (where its
+profile is within 10 % of its height under every edge the readings allow).
+These say where to probe first.
 """
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ import math
 import numpy as np
 
 from palpd.learner import shapes
+from palpd.learner.priors import EDGE_SHARPNESS
 
 JOINT_SIGMA = 3.0  # readings around a hole this far above the chosen model together (mean shift, in sd): a lump there?
 HOLE_FRACTION = 0.75  # of the `none` reach: a spot this far from every reading is a hole a lump can hide in
@@ -35,15 +38,50 @@ def unconfirmed_centre(fit, readings_xy: np.ndarray, spacing_mm: float) -> np.nd
     around but not between, fit one ellipse as well as two circles, its readings inside near either end,
     and only the middle tells them apart (two touching lumps: one ellipse at 0.9999, and the end)."""
     for params in lump_params(fit):
-        if fit.family.kind == "ellipses":
-            _, minor, _ = shapes.axes_and_angle(params, True)
-            felt = np.hypot(*(readings_xy - params[:2]).T) <= max(CONFIRM_RHO * minor, spacing_mm)
-        else:
-            lr2, _ = shapes.log_rho2(params, readings_xy, False)
-            felt = lr2 <= 2.0 * math.log(max(CONFIRM_RHO, spacing_mm / math.exp(params[2])))
-        if not np.any(felt):
+        if not np.any(_within(fit, params, readings_xy, CONFIRM_RHO, spacing_mm)):
             return params[:2]
     return None
+
+
+def _within(fit, params: np.ndarray, readings_xy: np.ndarray, rho: float, spacing_mm: float) -> np.ndarray:
+    """Which readings lie within ρ of a lump's centre (an ellipse's: within ρ of its minor semi-axis), or
+    within the probe spacing of it (a lump smaller than that)."""
+    if fit.family.kind == "ellipses":
+        _, minor, _ = shapes.axes_and_angle(params, True)
+        return np.hypot(*(readings_xy - params[:2]).T) <= max(rho * minor, spacing_mm)
+    lr2, _ = shapes.log_rho2(params, readings_xy, False)
+    return lr2 <= 2.0 * math.log(max(rho, spacing_mm / math.exp(params[2])))
+
+
+def unread_top(fit, readings_xy: np.ndarray, spacing_mm: float) -> np.ndarray | None:
+    """The centre of the first lump whose top no reading has read, or None. Its radius is where the
+    stiffness is halfway to its top, and only a reading at the top reads its height: one half the radius
+    out (85 % of the height of a Gaussian rise) left the top to the family's profile, which readings
+    farther out hardly constrain (gradual-lump, seeds 1 and 2: the radius 0.33 and 0.41 mm wide of its
+    half-height at a stated sd of 0.2 mm). Read means within the reach where the lump's profile is at 90 %
+    of its height under every edge its readings allow (tail shape and sharpness 2 sd either way); a sharp
+    edge asks for no reading nearer than CONFIRM_RHO, where it was felt."""
+    for j, params in enumerate(lump_params(fit)):
+        reach = _top_reach(fit, j, params)
+        if reach < CONFIRM_RHO and not np.any(_within(fit, params, readings_xy, reach, spacing_mm)):
+            return params[:2]
+    return None
+
+
+def _top_reach(fit, j: int, params: np.ndarray) -> float:
+    """ρ within which lump j's profile is at 90 % of its height under every edge its readings allow (its
+    tail shape and sharpness each 2 sd either way), at most CONFIRM_RHO."""
+    first = fit.family.lump_slice(j).stop - 3  # [λ, log s, log a] end each lump's parameters
+    sd = np.sqrt(np.maximum(np.diag(fit.cov)[first:first + 2], 0.0))
+    sharpness = tuple(map(math.log, EDGE_SHARPNESS))
+    reach = CONFIRM_RHO
+    for tail_step in (-2.0, 2.0):
+        for sharp_step in (-2.0, 2.0):
+            edge = params.copy()
+            edge[-3] = min(max(params[-3] + tail_step * sd[0], shapes.TAIL_RANGE[0]), shapes.TAIL_RANGE[1])
+            edge[-2] = min(max(params[-2] + sharp_step * sd[1], sharpness[0]), sharpness[1])
+            reach = min(reach, shapes.rho_at(edge, -EDGE_LEVEL))
+    return reach
 
 
 def uncovered_edge(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float,

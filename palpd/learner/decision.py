@@ -273,7 +273,8 @@ class Decision:
             return centre
         lumps = describe.lumps_of(fit, None, self.size_mm)  # every lump, in the fit's order (no τ filter)
         unsure = np.array([_sds(lump) > self.settings.tolerance_mm for lump in lumps])
-        return coverage.uncovered_edge(fit, readings, self.size_mm, spacing, unsure)
+        edge = coverage.uncovered_edge(fit, readings, self.size_mm, spacing, unsure)
+        return edge if edge is not None else coverage.unread_top(fit, readings, spacing)
 
     def _unfelt(self) -> np.ndarray | None:
         """The centre of a lump that a hypothesis the evidence prefers needs and no reading felt
