@@ -104,25 +104,34 @@ REGIONS = {
     "two-thirds": (1.5, 0.02, lambda p: TISSUE * (1 + 1.5 * _rise(p[:, 0] + 10 - 0.2 * p[:, 1], 1.5))),
     "two-strips": (1.5, 0.02, lambda p: TISSUE * (1 + 1.5 * _rise(np.abs(p[:, 0]) - 15, 1.5))),
 }
+def _distance(p: np.ndarray, cx: float, cy: float) -> np.ndarray:
+    return np.hypot(p[:, 0] - cx, p[:, 1] - cy)
+
+
+def _ellipse_at_edge(p: np.ndarray) -> np.ndarray:
+    """15 x 6 mm semi-axes at 70 degrees, its end 5 mm from the tissue's edge, 5.8x the tissue."""
+    c, s = math.cos(math.radians(70.0)), math.sin(math.radians(70.0))
+    ux, uy = p[:, 0] - 20.0, p[:, 1] - 2.0
+    rho = np.hypot((c * ux + s * uy) / 15.0, (-s * ux + c * uy) / 6.0)
+    return TISSUE + 0.58 / (1.0 + rho**6)
+
+
 # Lumps of profiles the simulator does not make (its lumps are Hill profiles, drivers/sim/tissue.py): name:
 # (tissue size mm, grid step mm, relative noise, k(xy)), in this order (one noise stream runs through them)
 PROFILES = {
     # a cone: the stiffness rises linearly to a point at the centre; half height 7 mm out
-    "cone": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.48 * np.clip(1 - np.hypot(p[:, 0] - 6, p[:, 1] + 4) / 14, 0, 1)),
+    "cone": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.48 * np.clip(1 - _distance(p, 6, -4) / 14, 0, 1)),
     # two Gaussian bumps, sd 4 and 6 mm, 5.8x and 3.8x the tissue
-    "two-bumps": ((60, 60), 1.5, 0.02, lambda p: TISSUE + np.maximum(
-        0.58 * np.exp(-((p[:, 0] + 14) ** 2 + (p[:, 1] - 10) ** 2) / 32.0),
-        0.33 * np.exp(-((p[:, 0] - 12) ** 2 + (p[:, 1] + 12) ** 2) / 72.0))),
+    "two-bumps": ((60, 60), 1.5, 0.02, lambda p: TISSUE + np.maximum(0.58 * np.exp(-_distance(p, -14, 10) ** 2 / 32),
+                                                                     0.33 * np.exp(-_distance(p, 12, -12) ** 2 / 72))),
     # a flat top and a linear ramp 3 mm wide, half height 9.5 mm out
-    "plateau": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.38 * np.clip((11 - np.hypot(p[:, 0] + 5, p[:, 1] + 3)) / 3, 0, 1)),
-    # an ellipse 15 x 6 mm at 70 degrees whose end comes within 5 mm of the tissue's edge
-    "ellipse-at-edge": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.58 / (1 + np.hypot(
-        (0.342 * (p[:, 0] - 20) + 0.940 * (p[:, 1] - 2)) / 15, (-0.940 * (p[:, 0] - 20) + 0.342 * (p[:, 1] - 2)) / 6) ** 6)),
+    "plateau": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.38 * np.clip((11 - _distance(p, -5, -3)) / 3, 0, 1)),
+    "ellipse-at-edge": ((60, 60), 1.5, 0.02, _ellipse_at_edge),
     # a stiff region around one corner of an 80 x 60 mm tissue, on a 2 mm grid with 3 % noise
-    "corner": ((80, 60), 2.0, 0.03, lambda p: TISSUE * (1 + 1.8 * _rise(35 - np.hypot(p[:, 0] - 40, p[:, 1] - 30), 2.0))),
+    "corner": ((80, 60), 2.0, 0.03, lambda p: TISSUE * (1 + 1.8 * _rise(35 - _distance(p, 40, 30), 2.0))),
     # a lump 5x stiffer than a background that itself stiffens 1.3x across the tissue
     "sloped-lump": ((60, 60), 1.5, 0.02, lambda p: TISSUE * np.exp(0.125 * p[:, 0] / 30) * (
-        1 + 4 / (1 + (np.hypot(p[:, 0] - 8, p[:, 1] - 9) / 6) ** 8))),
+        1 + 4 / (1 + (_distance(p, 8, 9) / 6) ** 8))),
     # no lump: plain tissue with 2 % noise on a 1.5 mm grid
     "plain": ((60, 60), 1.5, 0.02, lambda p: np.full(len(p), TISSUE)),
 }

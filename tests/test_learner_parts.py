@@ -854,10 +854,11 @@ def test_a_satellite_hole_probed_without_a_reading_is_not_asked_for_again():
 def test_a_gradual_lump_is_read_at_its_top_before_its_half_height_radius_stands():
     """Fourteen readings recorded from a simulated active scan of gradual-lump (seed 2: a Gaussian rise, sd
     7 mm, its half-height radius 8.25 mm), the nearest 4 mm from its centre (0.47 of the radius fitted),
-    where it is at 85 % of its height. The family's profile drew the top from the readings farther out, a plateau
-    a little lower than it is, and the half-height with it: the scan stopped there, the radius 0.41 mm
-    large at a stated sd of 0.2 mm. The top is read first (the readings leave the edge's sharpness and tail
-    loose enough that 90 % of the height may lie nearer than 0.47), and the radius lands within 0.1 mm."""
+    where it is at 85 % of its height. The family's profile drew the top from the readings farther out, a
+    plateau a little lower than it is, and the half-height with it: the scan stopped there, the radius
+    0.41 mm large at a stated sd of 0.2 mm. The top is read first (the readings leave the edge's sharpness
+    and tail loose enough that 90 % of the height may lie nearer than 0.47), and the radius lands within
+    0.1 mm."""
     from palpd.config import Settings
     from palpd.learner.planner import make_learner
 
