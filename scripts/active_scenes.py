@@ -2,6 +2,7 @@
 
     .venv/bin/python scripts/active_scenes.py [--seed N | --seeds 0,1,2] [--raster-too] [SCENE ...]
     .venv/bin/python scripts/active_scenes.py --random N [--random-seed S] [--raster-too]
+    .venv/bin/python scripts/active_scenes.py --varied N [--random-seed S] [--raster-too]
     add --config FILE (TOML) to any of them for other settings, e.g. [learner] coverage_mm = 11
 
 
@@ -14,7 +15,8 @@ count was right (every lump found, none false), palpations (median and most), th
 With --random, N scenes none of which ships, drawn from --random-seed (tissue size and stiffness, one to
 three lumps that do not touch, of any radius, depth and contrast in the ranges below, any sensor noise):
 the same table and one summary row, so that what the learner decides is tried beyond the scenes it was
-developed on.
+developed on. --varied N draws from a wider range still (varied_scenes: tissues not square, hardening,
+damped, with friction, turned on the bench, lumps partly past the tissue's edge, some scenes with none).
 """
 from __future__ import annotations
 
@@ -81,6 +83,8 @@ def main() -> int:
     parser.add_argument("--seeds", default=None, help="comma-separated seeds: every scene once per seed, and a summary")
     parser.add_argument("--raster-too", action="store_true")
     parser.add_argument("--random", type=int, default=0, metavar="N", help="N random scenes instead of the shipped ones")
+    parser.add_argument("--varied", type=int, default=0, metavar="N",
+                        help="N random scenes of the wider range (varied_scenes) instead of the shipped ones")
     parser.add_argument("--random-seed", type=int, default=0)
     parser.add_argument("--config", default=None, metavar="FILE", help="settings (TOML) instead of the defaults")
     args = parser.parse_args()
@@ -92,6 +96,8 @@ def main() -> int:
             return 2
     if args.random:
         return tried_beyond(random_scenes(args.random, args.random_seed), args.raster_too)
+    if args.varied:
+        return tried_beyond(varied_scenes(args.varied, args.random_seed), args.raster_too)
     names = args.scenes or sorted(p.stem for p in SCENES.glob("*.toml"))
     if args.seeds:
         return sweep(names, [int(s) for s in args.seeds.split(",")])
@@ -144,6 +150,35 @@ def random_scenes(count: int, seed: int) -> list[Scene]:
     return scenes
 
 
+def varied_scenes(count: int, seed: int) -> list[Scene]:
+    """Scenes drawn at random from a wider range than random_scenes: tissue 40-80 mm on each side (not only
+    square), hardening (exponent 1-2), sometimes damped or with sliding friction, turned on the bench by up
+    to 30°; none to three lumps 2-12 mm in radius, 0-8 mm deep, 2.5-10 times as stiff, whose centre may lie
+    up to 0.7 of their radius from the tissue's edge (part of the lump past it); sensor noise 0.001-0.06 N."""
+    rng = random.Random(seed + 5000)
+    scenes = []
+    for i in range(count):
+        width, height = rng.choice([40.0, 50.0, 60.0, 80.0]), rng.choice([40.0, 50.0, 60.0, 80.0])
+        tissue_k = math.exp(rng.uniform(math.log(0.05), math.log(0.4)))
+        lumps: list[dict] = []
+        for _ in range(rng.choices([0, 1, 2, 3], [0.15, 0.45, 0.25, 0.15])[0]):
+            for _attempt in range(100):
+                radius = rng.uniform(2.0, 12.0)
+                centre = [rng.uniform(-width / 2 + radius * 0.3, width / 2 - radius * 0.3),
+                          rng.uniform(-height / 2 + radius * 0.3, height / 2 - radius * 0.3)]
+                if all(math.dist(centre, other["center_mm"]) > radius + other["radius_mm"] + 6.0 for other in lumps):
+                    lumps.append({"center_mm": centre, "radius_mm": radius, "depth_mm": rng.uniform(0.0, 8.0),
+                                  "stiffness_n_per_mm": tissue_k * rng.uniform(2.5, 10.0)})
+                    break
+        tissue = {"size_mm": [width, height], "stiffness_n_per_mm": tissue_k,
+                  "exponent": rng.choice([1.0, 1.0, 1.5, 2.0]), "damping_n_s_per_mm": rng.choice([0.0, 0.0, 0.01]),
+                  "friction": rng.choice([0.0, 0.0, 0.3])}
+        scenes.append(Scene(name=f"varied-{seed}-{i}", seed=seed * 1000 + i, tissue=tissue, lump=lumps,
+                            placement={"rotation_deg": rng.choice([0.0, 0.0, 15.0, 30.0])},
+                            sensor={"noise_n": rng.choice([0.001, 0.005, 0.01, 0.03, 0.06]), "tilt": True}))
+    return scenes
+
+
 def tried_beyond(scenes: list[Scene], raster_too: bool) -> int:
     print(HEADER)
     runs = []
@@ -151,8 +186,14 @@ def tried_beyond(scenes: list[Scene], raster_too: bool) -> int:
         k = scene.tissue.stiffness_n_per_mm
         lumps = ", ".join(f"r {lump.radius_mm:.1f} mm {lump.depth_mm:.1f} deep ×{lump.stiffness_n_per_mm / k:.1f}"
                           for lump in scene.lump)
-        name = (f"{scene.name}: {scene.tissue.size_mm[0]:.0f} mm, {k:.2f} N/mm, "
-                f"noise {scene.sensor.noise_n} N; {lumps}")
+        width, height = scene.tissue.size_mm
+        size = f"{width:.0f} mm" if width == height else f"{width:.0f} × {height:.0f} mm"
+        extras = "".join(text for text, shown in (
+            (f", exponent {scene.tissue.exponent:g}", scene.tissue.exponent != 1.0),
+            (f", damping {scene.tissue.damping_n_s_per_mm:g}", scene.tissue.damping_n_s_per_mm > 0.0),
+            (f", friction {scene.tissue.friction:g}", scene.tissue.friction > 0.0),
+            (f", turned {scene.placement.rotation_deg:g}°", scene.placement.rotation_deg != 0.0)) if shown)
+        name = f"{scene.name}: {size}, {k:.2f} N/mm{extras}, noise {scene.sensor.noise_n} N; {lumps or 'no lump'}"
         runs.append(scan(scene, "active", BASE[0].learner.max_palpations, 0))
         print(row(name, *runs[-1]), flush=True)
         if raster_too:

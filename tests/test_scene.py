@@ -123,14 +123,21 @@ def test_an_active_scan_of_a_tissue_out_of_reach_is_refused_before_it_is_planned
     assert result.returncode == 78
 
 
-def test_the_random_scenes_the_learner_is_tried_on_are_valid_reproducible_and_keep_their_lumps_apart():
-    """scripts/active_scenes.py --random N: scenes beyond the shipped ones, the same for the same seed."""
+def active_scenes_script():
+    """scripts/active_scenes.py as a module (a script, not part of the package)."""
     import importlib.util
-    import math
 
     spec = importlib.util.spec_from_file_location("active_scenes", ROOT / "scripts" / "active_scenes.py")
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
+    return script
+
+
+def test_the_random_scenes_the_learner_is_tried_on_are_valid_reproducible_and_keep_their_lumps_apart():
+    """scripts/active_scenes.py --random N: scenes beyond the shipped ones, the same for the same seed."""
+    import math
+
+    script = active_scenes_script()
     scenes = script.random_scenes(30, 5)
     assert [s.model_dump() for s in scenes] == [s.model_dump() for s in script.random_scenes(30, 5)]
     assert [s.model_dump() for s in scenes] != [s.model_dump() for s in script.random_scenes(30, 6)]
@@ -143,6 +150,53 @@ def test_the_random_scenes_the_learner_is_tried_on_are_valid_reproducible_and_ke
             assert 2.5 <= lump.stiffness_n_per_mm / scene.tissue.stiffness_n_per_mm <= 8.0
             for other in scene.lump[:i]:
                 assert math.dist(lump.center_mm, other.center_mm) > lump.radius_mm + other.radius_mm + 6.0
+
+
+def test_the_varied_scenes_reach_past_the_random_ones_and_are_reproducible():
+    """scripts/active_scenes.py --varied N (README, "Latest"): tissues not square, hardening, damped, with
+    friction, turned on the bench, lumps partly past the edge and scenes with none, all valid scenes, the
+    same for the same seed."""
+    import math
+
+    script = active_scenes_script()
+    scenes = script.varied_scenes(40, 1)
+    assert [s.model_dump() for s in scenes] == [s.model_dump() for s in script.varied_scenes(40, 1)]
+    assert [s.model_dump() for s in scenes] != [s.model_dump() for s in script.varied_scenes(40, 2)]
+    assert {len(s.lump) for s in scenes} == {0, 1, 2, 3}
+    assert any(s.tissue.size_mm[0] != s.tissue.size_mm[1] for s in scenes)
+    for attribute in ("exponent", "damping_n_s_per_mm", "friction"):
+        assert len({getattr(s.tissue, attribute) for s in scenes}) > 1, attribute
+    assert len({s.placement.rotation_deg for s in scenes}) > 1
+    past_the_edge = 0
+    for scene in scenes:
+        half = [side / 2 for side in scene.tissue.size_mm]
+        for i, lump in enumerate(scene.lump):
+            assert all(abs(c) <= h - 0.3 * lump.radius_mm for c, h in zip(lump.center_mm, half))
+            past_the_edge += any(abs(c) > h - lump.radius_mm for c, h in zip(lump.center_mm, half))
+            for other in scene.lump[:i]:
+                assert math.dist(lump.center_mm, other.center_mm) > lump.radius_mm + other.radius_mm + 6.0
+    assert past_the_edge > 0
+
+
+def test_the_profile_maps_the_learner_is_tried_on_load_and_hold_their_lumps(tmp_path):
+    """scripts/make_scene_maps.py --profiles DIR (README, "Tried beyond"): seven scenes that load, the same
+    bytes when written again, and a truth of one lump each (two for two-bumps, none for plain tissue)."""
+    import subprocess
+    import sys
+
+    from palpd import metrics
+
+    for out in (tmp_path / "a", tmp_path / "b"):
+        subprocess.run([sys.executable, str(ROOT / "scripts" / "make_scene_maps.py"), "--profiles", str(out)],
+                       check=True, capture_output=True, timeout=60)
+    scenes = sorted((tmp_path / "a").glob("*.toml"))
+    assert [p.stem for p in scenes] == ["cone", "corner", "ellipse-at-edge", "plain", "plateau", "sloped-lump",
+                                        "two-bumps"]
+    for path in scenes:
+        csv = path.with_suffix(".csv")
+        assert csv.read_bytes() == (tmp_path / "b" / csv.name).read_bytes()
+        truth = metrics.scene_truth(load_scene(path))
+        assert len(truth) == {"plain": 0, "two-bumps": 2}.get(path.stem, 1), (path.stem, truth)
 
 
 def test_the_region_maps_the_learner_is_tried_on_load_and_hold_a_stiff_region(tmp_path):
