@@ -231,6 +231,27 @@ def test_no_evidence_is_never_none_but_undetermined_when_the_budget_runs_out():
         assert xy is not None  # palpations that teach nothing never stop the learner early
         learner.observe(xy, None, outcome="no_contact")
     assert learner.next_probe(12) is None and learner.verdict() == "undetermined" and learner.lumps() == []
+    assert learner.model() is None and learner.undecided() == "no stiffness reading yet"
+
+
+def test_an_undetermined_choice_says_why_and_a_misfit_before_a_low_weight():
+    """A stiff ring read around and inside: `none` is the likeliest at weight ~0.7 and misses the ring's readings
+    by ~70x their noise floor. "Raise the budget or lower the confidence" was all an undetermined scan said;
+    it says the likeliest hypothesis explains nothing, which a lower confidence would not mend."""
+    def ring(x, y):
+        return TISSUE + 0.4 / (1.0 + math.exp(-(4.0 - abs(math.hypot(x, y) - 14.0)) / 0.8))
+
+    learner = Learner((60.0, 60.0), LearnerSettings(grid_points=41), 0.3, 0)
+    spots = [(14.0 * math.cos(a), 14.0 * math.sin(a)) for a in np.linspace(0.0, 2.0 * math.pi, 7)[:-1]]
+    spots += [(0.0, 0.0), (3.0, 2.0), (-2.0, 3.0), (25.0, 25.0), (-25.0, 25.0), (25.0, -25.0), (-25.0, -25.0)]
+    for i, xy in enumerate(spots):
+        learner.observe(xy, ring(*xy), 0.0004)
+        if i == 2:
+            assert learner.model()["undecided"] == "3 readings at distinct spots; a choice rests on at least 9"
+    assert learner.verdict() == "undetermined" and not learner._adequate()
+    assert learner.model()["weight"] < learner.settings.confidence  # short of it too, but that is not the news
+    why = learner.model()["undecided"]
+    assert why.startswith(f"{learner.model()['chosen']}, the likeliest, misses its readings by ") and "texture" in why
 
 
 def test_a_choice_the_newest_reading_just_made_is_not_yet_a_verdict():
@@ -241,9 +262,11 @@ def test_a_choice_the_newest_reading_just_made_is_not_yet_a_verdict():
     learner.observe((5.0, 5.0), 0.8, 0.0004)  # a lump where flat tissue was expected
     assert learner.model()["chosen"] == "circles:1" and learner._confident() and learner._adequate()
     assert learner.verdict() == "undetermined"
+    assert learner.model()["undecided"] == "the choice became circles:1 on the newest reading"
     for xy, k in [((7.0, 5.0), 0.8), ((3.0, 5.0), 0.75)]:
         learner.observe(xy, k, 0.0004)
     assert learner.model()["chosen"] == "circles:1" and learner.verdict() == "lumps"
+    assert learner.model()["undecided"] is None
 
 
 def test_very_noisy_readings_invent_nothing():

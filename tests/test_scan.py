@@ -157,6 +157,7 @@ def test_cli_a_budget_spent_before_the_evidence_decides_is_undetermined_and_fail
                      "--quiet", "--report", tmp_path / "r.json")
     assert result.returncode == 3 and "Traceback" not in result.stderr
     assert result.stderr.strip().startswith("palpd: undetermined: 3 palpations")
+    assert "3 readings at distinct spots; a choice rests on at least 9" in result.stderr  # why, not only that
     report = json.loads((tmp_path / "r.json").read_text())
     assert report["verdict"] == "undetermined" and "no lump" not in result.stdout
 

@@ -148,6 +148,10 @@ class ModelChoice(BaseModel):
     unfelt_radius_mm: Optional[float] = None
     """The farthest any spot of the tissue lies from a reading: a lump of smaller radius could sit between the
     readings unfelt, so the count means "no other lump this large or larger"."""
+    undecided: Optional[str] = None
+    """Why the choice does not stand yet (null once it does): too few readings, a weight under the confidence
+    asked for, no hypothesis that explains the readings to their precision, or a choice one reading old. A scan
+    that ends with it set is `undetermined`."""
 
 
 class Estimate(Event):

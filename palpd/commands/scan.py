@@ -83,8 +83,13 @@ def run(args) -> int:
         print(f"palpd: undetermined: {report['undetermined_reason']}", file=sys.stderr)
         return EXIT_UNDETERMINED
     if report["verdict"] == "undetermined":
+        model = report.get("model") or {}
+        why = f": {model['undecided']}" if model.get("undecided") else ""
+        # a lower confidence decides only a choice short of it, not one that misses its readings
+        advice = "--max-palpations or lower --confidence" if model.get("weight", 0.0) < settings.learner.confidence \
+            else "--max-palpations"
         print(f"palpd: undetermined: {report['palpations']} palpations did not decide whether and which lumps "
-              f"there are (raise --max-palpations or lower --confidence)", file=sys.stderr)
+              f"there are{why} (raise {advice})", file=sys.stderr)
         return EXIT_UNDETERMINED
     return 0
 

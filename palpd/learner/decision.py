@@ -42,10 +42,32 @@ class Decision:
         return None if self.choice is None else self.hypotheses.checked(self.choice.chosen, self.obs)
 
     def model(self) -> dict | None:
-        """{chosen, weight, runner_up, unfelt_radius_mm} of the scan report and the estimate event."""
+        """{chosen, weight, runner_up, unfelt_radius_mm, undecided} of the scan report and the estimate event."""
         if self.choice is None:
             return None
-        return self.choice.as_dict() | {"unfelt_radius_mm": round(self.unfelt_radius_mm(), 1)}
+        return self.choice.as_dict() | {"unfelt_radius_mm": round(self.unfelt_radius_mm(), 1),
+                                        "undecided": self.undecided()}
+
+    def undecided(self) -> str | None:
+        """Why the model choice does not stand yet (None once it does), in the order `_choice_made` asks:
+        what an `undetermined` verdict tells the user beyond "the budget ran out". A choice that is
+        confident but explains the readings no better than the tissue's texture allows (`_adequate`) is
+        the case where more palpations or a lower confidence would not settle it, and so it is named."""
+        if self.choice is None:
+            return "no stiffness reading yet"
+        if not self._enough_spots():
+            return f"{self.coverage.spots} readings at distinct spots; a choice rests on at least {MIN_READINGS}"
+        chosen, weight = self.choice.chosen, self.choice.weight
+        if not self._adequate():
+            return (f"{chosen}, the likeliest, misses its readings by {self._chosen_noise_sd() / self.noise_floor:.1f}x "
+                    f"their noise floor, more than the tissue's texture accounts for: no hypothesis on offer "
+                    f"explains them (a shape, edge profile or background the models do not draw)")
+        if weight < self.settings.confidence:
+            runner_up = f"; runner-up {self.choice.runner_up}" if self.choice.runner_up else ""
+            return f"{chosen} weighs {weight:.3f}, under the confidence asked for ({self.settings.confidence:g}){runner_up}"
+        if chosen != self._chosen_before:
+            return f"the choice became {chosen} on the newest reading"
+        return None
 
     def unfelt_radius_mm(self) -> float:
         """What the count claim leaves open: a lump whose disc holds no reading is felt by none (a sharp edge is
