@@ -95,7 +95,8 @@ def watch_line(event, last_status: list) -> str | None:
     if topic == "Estimate":
         lumps = "; ".join(f"lump at ({l.center_mm[0]:.1f}, {l.center_mm[1]:.1f}) r {l.radius_mm:.1f} mm"
                           for l in event.lumps) or "no lump"
-        return f"estimate from {event.points} points: {lumps}{' (done)' if event.done else ''}"
+        model = f"; model {event.model.chosen} (weight {event.model.weight:.2f})" if event.model else ""
+        return f"estimate from {event.points} points: {lumps}{model}{' (done)' if event.done else ''}"
     if topic == "Status":
         if (event.state, event.message) == tuple(last_status):  # the heartbeat: said already
             return None

@@ -1,5 +1,6 @@
 """`palpd serve` as a service: slow subscribers, SIGTERM that must abort, probe.at/bias, palpctl's commands."""
 import queue
+import re
 import signal
 import subprocess
 import sys
@@ -120,7 +121,8 @@ def test_palpctl_watch_probe_bias_estop_reset_and_a_probe_survives_kill_9(daemon
         lines = Lines(watch)
         assert lines.wait_for("status:") == "status: ready, 0 palpations"
         palpctl("scan", "start", "--max-palpations", "9", "--size-mm", "40", "40")
-        assert lines.wait_for("(done)").startswith("estimate from 9 points: lump at (")
+        done = lines.wait_for("(done)")
+        assert done.startswith("estimate from 9 points: lump at (") and re.search(r"; model \S+ \(weight [\d.]+\)", done)
         assert any(line.startswith("palpation ") and "N/mm" in line for line in lines.seen), lines.seen
         daemon.wait_for(lambda s: s["state"] == "ready", what="scan end")
 

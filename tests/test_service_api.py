@@ -146,6 +146,8 @@ def test_the_live_page_follows_a_running_scan_in_headless_chromium(daemon, tmp_p
                                 f"&& document.getElementById('state').textContent === 'ready' "
                                 f"&& document.getElementById('lumps').innerText")
         assert re.search(r"lump 1: centre \(.+\) ± [\d.]+ mm, radius [\d.]+ ± [\d.]+ mm", text), text
+        model = browser.evaluate("document.getElementById('model').textContent")
+        assert re.fullmatch(r"(none|circles:\d|ellipse:\d|free-form) \(weight [\d.]+(, runner-up \S+)?\)", model), model
         assert int(browser.evaluate("+document.getElementById('map').dataset.lumps")) >= 1
     finally:
         browser.close()
