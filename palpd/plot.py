@@ -8,6 +8,7 @@ layers (e.g. other lump shapes) without touching the others.
 """
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -21,6 +22,7 @@ from matplotlib.transforms import offset_copy  # noqa: E402
 
 from palpd.errors import PalpdError  # noqa: E402
 
+TITLE_WIDTH = 90  # characters per line of the title's last line, why a scan ended undetermined
 MIN_CONTRAST = 0.3  # the stiffness colour scale spans at least this fraction of the median (scan.min_contrast)
 LUMP, TRUTH, FAILED = "#d0009c", "k", "#c00000"
 
@@ -144,6 +146,8 @@ def _title(report: dict) -> str:
     metrics = report.get("metrics")
     if metrics and metrics.get("max_center_error_mm") is not None:
         title += f"\ncentre error {metrics['max_center_error_mm']:.2f} mm, radius error {metrics['max_radius_error_mm']:.2f} mm"
+    if report.get("verdict") == "undetermined" and model and model.get("undecided"):
+        title += "\n" + textwrap.fill(f"why: {model['undecided']}", TITLE_WIDTH)  # why, where one looks
     return title
 
 

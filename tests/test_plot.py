@@ -12,6 +12,17 @@ def test_a_finished_scan_says_its_verdict_and_a_live_estimate_its_model():
     assert _title({"session": "s", "palpations": 2, "model": None}) == "session s — scan, 2 palpations"
 
 
+def test_an_undetermined_scan_s_picture_says_why():
+    why = ("circles:1, the likeliest, misses its readings by 9.0x their noise floor, more than the tissue's texture "
+           "accounts for: no hypothesis on offer explains them")
+    title = _title({"scene": "blotches", "strategy": "active", "palpations": 40, "verdict": "undetermined",
+                    "model": {**MODEL, "undecided": why}})
+    first, *why_lines = title.split("\n")
+    assert first == "blotches — active, 40 palpations, undetermined: ellipse:1 (weight 0.99)"
+    assert " ".join(why_lines) == f"why: {why}" and all(len(line) <= 90 for line in why_lines)
+    assert "\n" not in _title({"scene": "p", "palpations": 9, "verdict": "lumps", "model": {**MODEL, "undecided": None}})
+
+
 def test_a_lump_the_tissue_edge_cuts_says_so_in_the_scan_s_lump_line():
     from palpd.commands.scan import _lump_line
 
