@@ -15,7 +15,8 @@ def add_parser(subparsers):
                       help="press point by point, or slide along paths in contact (default discrete)")
     scan.add_argument("--max-palpations", type=int, metavar="N", help="budget (sliding: of paths)")
     scan.add_argument("--confidence", type=float, metavar="P",
-                      help="stop once the lump hypothesis the evidence chose has this weight, over 0.5 and under 1 (active; default 0.9)")
+                      help="stop once the lump hypothesis the evidence chose has this weight, over 0.5 and under 1 "
+                           "(active; default 0.9)")
     scan.add_argument("--tolerance-mm", type=float, metavar="T",
                       help="...and every centre and radius has posterior sd at most T (active; default 0.5)")
     scan.add_argument("--coverage-mm", type=float, metavar="MM",
