@@ -17,7 +17,10 @@ relative measurement noise where a real map would have one:
   tissue's own spot-to-spot variation, as a real phantom's map has it) on a 2 mm grid;
 - textured-plain.csv: plain tissue, no lump, with 5 % texture on a 2 mm grid;
 - touching-lumps.csv: touching-lumps' three lumps (5 mm, edges 2–4 mm apart, 6.7× the tissue, each with
-  the power-law edge the simulator gives a lump 2 mm deep) as a 1 mm grid would measure them, 2 % noise.
+  the power-law edge the simulator gives a lump 2 mm deep) as a 1 mm grid would measure them, 2 % noise;
+- cone-lump.csv: a lump whose stiffness rises linearly to a point, 4.5× the tissue at its top, 16 mm
+  from its top to where it meets the tissue (its half-height 8 mm out): tails that end, a top with no
+  plateau, 2 % noise on a 1.5 mm grid.
 
     .venv/bin/python scripts/make_scene_maps.py --regions DIR
 
@@ -88,6 +91,10 @@ def touching_lumps(xy: np.ndarray) -> np.ndarray:
         r_mm = np.hypot(xy[:, 0] - cx, xy[:, 1] - cy)
         rise = np.maximum(rise, (0.8 - TISSUE) * lump_profile(r_mm, 5.0, lump_sharpness(5.0, 2.0)))
     return TISSUE + rise
+
+
+def cone_lump(xy: np.ndarray) -> np.ndarray:
+    return TISSUE + (0.54 - TISSUE) * np.clip(1.0 - _distance(xy, -7.0, 5.0) / 16.0, 0.0, 1.0)
 
 
 def _rise(signed: np.ndarray, width_mm: float) -> np.ndarray:
@@ -194,6 +201,9 @@ def main() -> None:
     xy = grid(1.0)  # its own noise stream: added after the others, it leaves their noise as it was
     noise = np.random.default_rng(12).normal(0.0, 0.02, len(xy))
     write("touching-lumps.csv", xy, touching_lumps(xy) * (1.0 + noise))
+    xy = grid(1.5)
+    noise = np.random.default_rng(13).normal(0.0, 0.02, len(xy))
+    write("cone-lump.csv", xy, cone_lump(xy) * (1.0 + noise))
 
 
 if __name__ == "__main__":

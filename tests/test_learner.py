@@ -124,6 +124,22 @@ def test_a_gradual_gaussian_rise_is_one_lump_at_its_half_height():
     assert lump.radius_mm == pytest.approx(7.0 * math.sqrt(2.0 * math.log(2.0)), abs=0.5)
 
 
+@pytest.mark.parametrize("power", [1.0, 2.0])
+def test_a_lump_whose_rise_ends_is_reported_at_its_half_height(power):
+    """A lump whose stiffness rises linearly to a point (a cone) or as a paraboloid's cap, meeting the tissue
+    14 mm out: its tails end there. The family's tails never ended: its best fit drew a plateau under the top
+    and the half-height 1.2-2.3 mm too far out (σ_w 4-6x the floor). Tails that end are one more branch of
+    the profile (shapes.py), tried where a fit misses its readings."""
+    def k_at(xy):
+        return TISSUE + 0.48 * max(0.0, 1.0 - (math.hypot(xy[0] - 6.0, xy[1] + 4.0) / 14.0) ** power)
+
+    learner = learn(k_at)
+    assert learner.model()["chosen"] == "circles:1", learner.model()
+    (lump,) = learner.lumps()
+    assert math.dist(lump.center_mm, (6.0, -4.0)) <= 0.3
+    assert lump.radius_mm == pytest.approx(14.0 * 0.5 ** (1.0 / power), abs=0.3), lump.as_dict()
+
+
 def _rise(signed_mm: float) -> float:
     return 1.0 / (1.0 + math.exp(-signed_mm / 1.5))
 
@@ -199,18 +215,17 @@ def test_a_sharp_10_mm_lump_in_the_covering_lattice_s_deepest_hole_is_found():
 TOUCHING = [((-8.0, 0.0), 5.0, 2.0, 0.8), ((4.0, 0.0), 5.0, 2.0, 0.8), ((-1.0, 13.5), 5.0, 2.0, 0.8)]
 
 
-@pytest.mark.parametrize("satellite_reach, found", [(1.5, 3), (0.0, 2)], ids=["default", "off"])
-def test_beside_two_lumps_found_a_third_nearly_touching_them_is_looked_for(satellite_reach, found):
+def test_beside_two_lumps_found_a_third_nearly_touching_them_is_looked_for():
     """touching-lumps' three sharp 5 mm lumps, edges 2-4 mm apart: the tissue-wide coverage (holes of up to 18 mm
     between readings) stopped on the two at the bottom, the third never read (8.5 mm from the nearest reading);
-    looking closer beside lumps found together (`satellite_reach`) finds it. Off, the old answer: two."""
-    learner = learn(field(TOUCHING), seed=5, satellite_reach=satellite_reach)
+    looking closer beside lumps found together (`satellite_reach`) finds it. (Off, this seed had ended on two
+    until tails that end changed its course; the satellite holes themselves: test_learner_parts.)"""
+    learner = learn(field(TOUCHING), seed=5)
     assert_sane(learner, TOUCHING)
     m = metrics.compare([{"center_mm": c, "radius_mm": r} for c, r, *_ in TOUCHING], [l.as_dict() for l in learner.lumps()])
-    assert learner.verdict() == "lumps" and m["lumps_found"] == found and m["false_lumps"] == 0, m
+    assert learner.verdict() == "lumps" and m["lumps_found"] == 3 and m["false_lumps"] == 0, m
     assert learner.points <= 40
-    if found == 3:
-        assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5 and m["min_iou"] >= 0.9, m
+    assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5 and m["min_iou"] >= 0.9, m
 
 
 def test_a_palpation_at_no_finite_position_is_refused_and_the_learner_goes_on():

@@ -11,6 +11,7 @@ import pytest
 from hypothesis import example, given, settings as hsettings, strategies as st
 
 from palpd import metrics
+from palpd.learner import shapes
 from palpd.learner.gp import JITTER, PENDING_ROWS, Hyper, IncrementalGP, fit_hyper
 from palpd.learner.hypotheses import Hypotheses
 from palpd.learner.observations import Observations
@@ -139,6 +140,35 @@ def test_the_kernel_relearn_finds_scikit_learns_optimum(n, contrast, noise_sd, s
         if getattr(mine, name) != pytest.approx(getattr(theirs, name), rel=1e-2):
             swapped = log_evidence(replace(mine, **{name: getattr(theirs, name)}), xy, y, noise_var)
             assert abs(swapped - mine_lml) <= 10 * SAME_NATS, (name, mine, theirs, mine_lml, swapped)
+
+
+@hsettings(max_examples=40, deadline=None)
+@given(ellipse=st.booleans(), tail=st.floats(*shapes.TAIL_RANGE).filter(lambda t: abs(t) > 1e-5),
+       sharpness=st.floats(1.0, 60.0), radius=st.floats(0.5, 30.0), stretch=st.floats(-2.0, 2.0),
+       seed=st.integers(0, 999))
+def test_every_lump_profile_is_half_high_on_its_boundary_and_its_jacobian_is_its_derivative(
+        ellipse, tail, sharpness, radius, stretch, seed):
+    """Both tail branches (shapes.py): p = ½ on the 50 % boundary whatever the tails; tails that end are
+    zero from ρ^s = 1/c on, where the others never are; and the Jacobian the solver steps by is the
+    derivative of the values, out to and past the end of tails that end."""
+    family = shapes.Family("ellipses" if ellipse else "circles", 1, 30.0)
+    lump = shapes.make_lump((2.0, -3.0), radius, sharpness, 2.0, (stretch, 0.5 * stretch) if ellipse else None, tail)
+    theta = np.concatenate([[math.log(0.12), 0.01, -0.02], lump])
+    boundary = shapes.boundary_polygon(lump, ellipse)[:-1]
+    assert np.allclose(shapes.heights_of(family, theta, boundary)[:, 0], 1.0, rtol=1e-6)  # a·p = 2 · ½
+    far = shapes.boundary_polygon(np.concatenate([lump[:2], [lump[2] + math.log(3.0) / sharpness], lump[3:]]),
+                                  ellipse)[:-1]  # where ρ^s = 3, past the end of tails with c > 1/3
+    far_heights = shapes.heights_of(family, theta, far)[:, 0]
+    assert np.all(far_heights < 1e-12) if -0.5 * tail > 1.0 / 3.0 else np.all(far_heights > 1e-3), far_heights
+    xy = np.random.default_rng(seed).uniform(-40.0, 40.0, (60, 2))
+    _, jac = shapes.evaluate(family, theta, xy)
+    step = 1e-6
+    for i in range(len(theta)):
+        up, down = theta.copy(), theta.copy()
+        up[i] += step
+        down[i] -= step
+        numeric = (shapes.evaluate(family, up, xy, False)[0] - shapes.evaluate(family, down, xy, False)[0]) / (2 * step)
+        assert np.allclose(jac[:, i], numeric, rtol=1e-4, atol=1e-5), (i, np.abs(jac[:, i] - numeric).max())
 
 
 def test_the_evidence_picks_one_lump_not_two_two_not_one_and_none_on_flat_tissue():

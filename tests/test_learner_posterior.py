@@ -44,8 +44,9 @@ def radius_sd_mm(fit) -> float:
 
 
 def profile_radius_sd_mm(fit, obs, priors) -> float:
-    """Half the width of the radius interval where −log posterior (the rest refitted) rises by ½."""
-    lo, hi = priors.bounds(fit.family)
+    """Half the width of the radius interval where −log posterior (the rest refitted, the tails on their
+    branch: the other is another mode, fitted and weighed apart) rises by ½."""
+    lo, hi = priors.branch_bounds(fit.family, fit.theta)
     def least(theta, low, high) -> float:
         return levenberg_marquardt(lambda t: evidence.stacked(fit.family, t, obs, priors, fit.noise_sd),
                                    theta, low, high, 1e-6, 200)[1]
@@ -124,7 +125,7 @@ def test_lumps_whose_tails_sit_on_the_prior_edge_keep_their_evidence():
         hypotheses = Hypotheses((60.0, 60.0), 0.3, 0.01)
         hypotheses.update(obs, [], float(np.median(obs.y)))
         fit, priors = hypotheses.fits["circles:3"], hypotheses.priors(obs)
-        lo, hi = priors.bounds(fit.family)
+        lo, hi = priors.branch_bounds(fit.family, fit.theta)  # Hill tails: the edge of their branch
         on_edge = np.isfinite(hi - lo) & (np.minimum(fit.theta - lo, hi - fit.theta) <= 1e-6)
         assert on_edge.sum() >= 2, f"seed {seed}: the case needs several parameters on an edge"
         ratio = posterior.log_volume_ratio(fit, obs, priors)

@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from palpd.learner import shapes
-from palpd.learner.priors import EDGE_SHARPNESS
+from palpd.learner.priors import profile_branch
 
 JOINT_SIGMA = 3.0  # readings around a hole this far above the chosen model together (mean shift, in sd): a lump there?
 HOLE_FRACTION = 0.75  # of the `none` reach: a spot this far from every reading is a hole a lump can hide in
@@ -73,12 +73,12 @@ def _top_reach(fit, j: int, params: np.ndarray) -> float:
     tail shape and sharpness each 2 sd either way), at most CONFIRM_RHO."""
     first = fit.family.lump_slice(j).stop - 3  # [λ, log s, log a] end each lump's parameters
     sd = np.sqrt(np.maximum(np.diag(fit.cov)[first:first + 2], 0.0))
-    sharpness = tuple(map(math.log, EDGE_SHARPNESS))
+    tails, sharpness = profile_branch(params[-3])
     reach = CONFIRM_RHO
     for tail_step in (-2.0, 2.0):
         for sharp_step in (-2.0, 2.0):
             edge = params.copy()
-            edge[-3] = min(max(params[-3] + tail_step * sd[0], shapes.TAIL_RANGE[0]), shapes.TAIL_RANGE[1])
+            edge[-3] = min(max(params[-3] + tail_step * sd[0], tails[0]), tails[1])
             edge[-2] = min(max(params[-2] + sharp_step * sd[1], sharpness[0]), sharpness[1])
             reach = min(reach, shapes.rho_at(edge, -EDGE_LEVEL))
     return reach

@@ -23,6 +23,7 @@ import numpy as np
 from palpd.estimate import LumpEstimate
 from palpd.learner import shapes
 from palpd.learner.evidence import Fit
+from palpd.learner.priors import profile_branch
 
 MOSTLY_OFF = 0.5  # a lump with less than this share of its boundary on the tissue is reported by its part there
 STEP = 1e-5  # central-difference step on a lump's shape parameters (centre in mm; log radius and stretch)
@@ -226,10 +227,14 @@ def _ellipse_extras(params: np.ndarray, cov: np.ndarray, scale: float) -> dict:
 def _edge(params: np.ndarray, cov: np.ndarray) -> tuple[float, float]:
     edge = shapes.edge_width_mm(params)
     row = np.zeros(len(params))
+    tails, _ = profile_branch(params[-3])
     for i in (2, len(params) - 3, len(params) - 2):  # size, tail, sharpness: numerically, it is one number
-        step = np.zeros(len(params))
-        step[i] = 1e-6
-        row[i] = (shapes.edge_width_mm(params + step) - shapes.edge_width_mm(params - step)) / 2e-6
+        up, down = params.copy(), params.copy()
+        up[i] += 1e-6
+        down[i] -= 1e-6
+        if i == len(params) - 3:  # within the tail's branch (they meet at a kink: shapes.py)
+            up[i], down[i] = min(up[i], tails[1]), max(down[i], tails[0])
+        row[i] = (shapes.edge_width_mm(up) - shapes.edge_width_mm(down)) / 2e-6
     return edge, _sd(row, cov)
 
 

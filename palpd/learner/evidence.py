@@ -3,7 +3,7 @@
 The priors are stated, proper and the same for every scene: a lump's centre
 anywhere on the tissue (its disc may reach past it), its radius log-uniform from 0.5 mm
 to half the tissue's longer side (most of it), its edge sharpness log-uniform, its tail shape uniform
-(power-law to Gaussian, shapes.py), its contrast log-uniform
+(from tails that end at a finite distance through power-law to Gaussian, shapes.py), its contrast log-uniform
 from `min_contrast` (the softest difference that counts as a lump) to 1000×,
 an ellipse's log axis ratio up to log 8. The evidence is
 
@@ -126,11 +126,12 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
     Modes are compared by evidence, not by height: two configurations can fit the readings
     equally well while one is a narrow coincidence of parameters and the other is what the
     readings say whatever the details, and the second holds far more posterior mass."""
-    lo, hi = priors.bounds(family)
     noise = max(noise_sd or noise_floor, noise_floor)
+    starts = np.array(starts, dtype=float)
+    los, his = priors.branch_bounds(family, starts)
     thetas, costs, used = levenberg_marquardt_many(
-        lambda many: stacked(family, many, obs, priors, noise), np.array([_inside(s, lo, hi) for s in starts]),
-        lo, hi, COST_TOLERANCE, max_iter, (GIVE_UP_AFTER, HOPELESS) if give_up else None)
+        lambda many: stacked(family, many, obs, priors, noise), _inside(starts, los, his),
+        los, his, COST_TOLERANCE, max_iter, (GIVE_UP_AFTER, HOPELESS) if give_up else None)
     calls = int(used.sum())
     best, modes = None, []
     for theta, cost, lowest in zip(thetas, costs, np.minimum.accumulate(np.where(np.isfinite(costs), costs, np.inf))):
@@ -144,6 +145,7 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
         return None
     alternatives = _alternatives(best, modes)
     theta = best.theta
+    lo, hi = priors.branch_bounds(family, theta)
     for _ in range(2):  # σ_w from the residuals, then the fit again at that σ_w
         f, _ = shapes.evaluate(family, theta, obs.xy, jacobian=False)
         exact = obs.exact
@@ -200,7 +202,7 @@ def neg_log_posterior(family, theta, obs, priors, noise) -> float:
 
 def _evidence(family, theta, obs, priors, noise, noise_floor) -> Fit:
     r, jac = stacked(family, theta, obs, priors, noise)
-    hessian = jac.T @ jac + np.diag(priors.precision(family))
+    hessian = jac.T @ jac + np.diag(priors.precision(family, theta))
     sign, logdet = np.linalg.slogdet(hessian)
     if sign <= 0:
         hessian += np.eye(family.size) * 1e-9 * np.trace(hessian)
@@ -221,7 +223,7 @@ def assimilated(fit: Fit, obs: Observations, priors: Priors) -> Fit:
     reading's predictive density. A refit now and then corrects what linearising misses."""
     theta, cov = fit.theta.copy(), fit.cov.copy()
     log_z, log_det = fit.log_evidence, fit.log_det
-    lo, hi = priors.bounds(fit.family)
+    lo, hi = priors.branch_bounds(fit.family, fit.theta)
     for i in range(fit.n, obs.n):
         if obs.kind[i] != EXACT:
             continue

@@ -27,6 +27,8 @@ RESIZE = (0.6, 1.6)
 LIGHT_ITERATIONS = 12  # a refit spread over many readings takes at most this many steps (it starts warm)
 CONTENDER_WEIGHT = 1e-3  # a hypothesis this likely gets fresh starts as soon as a reading surprises it
 START_SHARPNESS = 6.0
+STRAINED_TAIL = 0.05  # a lump's λ this near the top of its range: tails as thin as the branch allows
+COMPACT_START = -0.5  # λ of a start whose tails end (at ρ² = 4 with s = 2, as a cone of the same half-height)
 ELLIPSE_START_STRETCH = 0.4  # log axis ratio an ellipse start is given along a region's long axis
 NEGLIGIBLE_NATS = 7.0  # a hypothesis whose Laplace evidence (an upper bound of its checked one) is this far
 #                       below the best checked one weighs under 1e-3 (< CONTENDER_WEIGHT): not worth checking
@@ -165,6 +167,8 @@ class Hypotheses:
             starts += new_starts()
             if old is not None and family.k:  # (`none` has no lump to reshape or resize)
                 starts += [_reshaped(old)] + (_resized(old) if contender else [])
+                if self._profile_strained(old):
+                    starts.append(_other_tails(old))
         starts = starts[:max_starts]
         iterations = LIGHT_ITERATIONS if max_starts is not None else 60
         if family.k == 0:
@@ -177,6 +181,18 @@ class Hypotheses:
         fit = evidence.fit(family, obs, priors, starts, self.noise_floor, noise_sd, iterations, give_up=not thorough)
         # a warm start alone finds no other mode: the ridge the last fresh starts found is still the one known
         return replace(fit, alternatives=old.alternatives) if warm_only and fit is not None else fit
+
+    def _profile_strained(self, fit: Fit) -> bool:
+        """Whether a fit's lump profiles may belong on the other tail branch (shapes.py): it misses its
+        readings (σ_w over ADEQUATE_NOISE times the floor), or a lump's tails are as thin as its branch
+        lets them be (the mode lies beyond, where the other branch goes on thinning them)."""
+        if fit.noise_sd > evidence.ADEQUATE_NOISE * self.noise_floor:
+            return True
+        for j in range(fit.family.k):
+            tail = fit.theta[fit.family.lump_slice(j).stop - 3]
+            if tail >= shapes.TAIL_RANGE[1] - STRAINED_TAIL:
+                return True
+        return False
 
     def _surprised_contender(self, old: Fit | None, obs: Observations) -> bool:
         return old is not None and self.weights.get(old.name, 0.0) >= CONTENDER_WEIGHT and self._surprised(old, obs)
@@ -454,6 +470,18 @@ def _reshaped(fit: Fit) -> np.ndarray:
     for j in range(fit.family.k):
         start = fit.family.lump_slice(j).stop - 3  # [.., λ, log s, log a]
         theta[start:start + 2] = (0.0, math.log(START_SHARPNESS))
+    return theta
+
+
+def _other_tails(fit: Fit) -> np.ndarray:
+    """The fit with every lump's tails on the other branch (shapes.py): ending at a finite distance if
+    they fall off for ever, and the reverse. A fit stays on the branch it starts on, and a cone or a
+    plateau with a ramp, fitted with tails that never end, draws its half-height 1-2 mm too far out."""
+    theta = fit.theta.copy()
+    for j in range(fit.family.k):
+        start = fit.family.lump_slice(j).stop - 3  # [.., λ, log s, log a]
+        compact = theta[start] < 0.0
+        theta[start:start + 2] = (0.5, math.log(START_SHARPNESS)) if compact else (COMPACT_START, math.log(2.0))
     return theta
 
 

@@ -47,7 +47,7 @@ def checked_cov(fit: Fit, obs, priors: Priors) -> np.ndarray:
     rows = quantities(fit, priors.size_mm)
     if len(rows) == 0:
         return fit.cov
-    lo, hi = priors.bounds(fit.family)
+    lo, hi = priors.branch_bounds(fit.family, fit.theta)
     directions = _directions(fit.cov, fit.theta, lo, hi)
     carried = (rows @ directions) ** 2
     share = carried / np.maximum(carried.sum(axis=1, keepdims=True), 1e-300)
@@ -69,7 +69,7 @@ def log_volume_ratio(fit: Fit, obs, priors: Priors) -> float:
     while a few millimetres on it no longer covers that reading or is felt where the tissue is soft.
     Counted as free, six such lumps on ten readings out-weighed the plain tissue by nats they never
     had (a soft region read as four lumps)."""
-    lo, hi = priors.bounds(fit.family)
+    lo, hi = priors.branch_bounds(fit.family, fit.theta)
     directions = _directions(fit.cov, fit.theta, lo, hi, each_edge_alone=True)
     objective = _objective(fit, obs, priors)
     base = objective(fit.theta)
@@ -119,7 +119,7 @@ def _scaled_eigenvectors(cov: np.ndarray, where: np.ndarray) -> np.ndarray:
 
 def _objective(fit: Fit, obs, priors: Priors):
     """−log posterior, with the uniform priors' stand-in curvature the Laplace covariance also holds."""
-    precision = priors.precision(fit.family)
+    precision = priors.precision(fit.family, fit.theta)
 
     def objective(theta: np.ndarray) -> float:
         # a trial point far out along a direction may leave the shape's domain (a radius through zero):
@@ -182,7 +182,7 @@ def profiled_spread(fit: Fit, obs, priors: Priors, cov: np.ndarray) -> np.ndarra
     spread = np.zeros_like(cov)
     if fit.family.k == 0 or bool(np.all(obs.kind == EXACT)):
         return spread
-    lo, hi = priors.bounds(fit.family)
+    lo, hi = priors.branch_bounds(fit.family, fit.theta)
     base = neg_log_posterior(fit.family, fit.theta, obs, priors, fit.noise_sd)
     shapes_tried = len(PROFILE_SHARPER) + 1
     for j in range(fit.family.k):
@@ -198,7 +198,7 @@ def profiled_spread(fit: Fit, obs, priors: Priors, cov: np.ndarray) -> np.ndarra
                 starts = np.repeat(here[None, :], shapes_tried, axis=0)
                 starts[:, at] = fit.theta[at] + sign * offset
                 for row, factor in enumerate(PROFILE_SHARPER, start=1):
-                    starts[row, tail] = lo[tail]
+                    starts[row, tail] = 0.0  # Hill tails (where the two tail branches meet)
                     starts[row, sharpness] += math.log(factor)
                 starts = np.clip(starts, lo, hi)
                 low, high = lo.copy(), hi.copy()

@@ -2,7 +2,8 @@
 
 A lump's centre anywhere on the tissue (one centred off it could never be felt
 from inside), its radius log-uniform from 0.5 mm to half the tissue's longer
-side, its edge sharpness log-uniform, its tail shape uniform, its contrast
+side, its edge sharpness log-uniform, its tail shape uniform (from tails that
+end at a finite distance through power-law to Gaussian-like ones), its contrast
 log-uniform from `min_contrast` (the softest difference that counts as a lump)
 to 1000×, an ellipse's log axis ratio up to log 8; the background's level and
 slopes Gaussian (in evidence.py's prior residuals).
@@ -19,6 +20,11 @@ from palpd.learner import shapes
 
 MAX_AXIS_RATIO = 8.0
 EDGE_SHARPNESS = (2.0, 60.0)
+# A lump felt through tissue has tails that never end (the simulator's, a hard inclusion's); tails that end
+# (a cone, a plateau with a ramp: maps made by hand, or a lump at the surface) are the exception the prior
+# says they are: each extra lump a hypothesis holds pays for a profile prior spread over both branches.
+ENDING_TAILS = 0.1
+COMPACT_SHARPNESS_FLOOR = 1.0  # tails that end may rise to a point (a cone: s = 1, c = ½); others stay smooth on top
 MAX_CONTRAST = 999.0
 MIN_RADIUS_MM = 0.5
 CENTRE_MARGIN = 0.0  # a lump is centred on the tissue (one centred off it could never be felt from inside)
@@ -39,6 +45,24 @@ class Priors:
     def bounds(self, family: shapes.Family) -> tuple[np.ndarray, np.ndarray]:
         return _bounds(self.size_mm, self.min_contrast, family.kind, family.k)
 
+    def branch_bounds(self, family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The box a fit from `theta` (d, or S × d) searches: each lump's tail shape kept on the side of
+        the Hill profile (λ = 0) it is on. The two branches meet there with their slopes of opposite
+        sign (each thins the tails), so a step across is a kink the solver would stall on; a fit from
+        each side competes by evidence instead (shapes.py)."""
+        lo, hi = self.bounds(family)
+        theta = np.asarray(theta, dtype=float)
+        lo, hi = np.broadcast_to(lo, theta.shape).copy(), np.broadcast_to(hi, theta.shape).copy()
+        (compact_tail, compact_sharp), (smooth_tail, smooth_sharp) = profile_branch(-1.0), profile_branch(0.0)
+        for j in range(family.k):
+            tail = family.lump_slice(j).stop - 3  # [.., λ, log s, log a]
+            compact = theta[..., tail] < 0.0
+            for i, (compact_range, smooth_range) in ((tail, (compact_tail, smooth_tail)),
+                                                     (tail + 1, (compact_sharp, smooth_sharp))):
+                lo[..., i] = np.where(compact, compact_range[0], smooth_range[0])
+                hi[..., i] = np.where(compact, compact_range[1], smooth_range[1])
+        return lo, hi
+
     def _lump_box(self, ellipse: bool) -> list[tuple[float, float]]:
         margin = CENTRE_MARGIN * max(self.size_mm)
         half_w, half_h = self.size_mm[0] / 2 + margin, self.size_mm[1] / 2 + margin
@@ -47,22 +71,51 @@ class Priors:
         if ellipse:
             e = math.log(MAX_AXIS_RATIO)
             box += [(-e, e), (-e, e)]
-        return box + [shapes.TAIL_RANGE, tuple(map(math.log, EDGE_SHARPNESS)),
+        return box + [shapes.TAIL_RANGE, (math.log(COMPACT_SHARPNESS_FLOOR), math.log(EDGE_SHARPNESS[1])),
                       (math.log(self.min_contrast), math.log(MAX_CONTRAST))]
 
     def log_density(self, family: shapes.Family, theta: np.ndarray) -> float:
-        """log p(θ) of the uniform lump boxes (the background's Gaussian prior is in its residuals)."""
+        """log p(θ) of the uniform lump boxes (the background's Gaussian prior is in its residuals); a lump's
+        tail shape and sharpness uniform within their branch, which is one with tails that end with
+        probability ENDING_TAILS."""
         lo, hi = self.bounds(family)
         box = np.isfinite(lo)
-        return float(-np.sum(np.log(hi[box] - lo[box])))
+        log_p = 0.0
+        for j in range(family.k):
+            tail = family.lump_slice(j).stop - 3
+            box[tail:tail + 2] = False
+            log_p += _log_profile_density(float(theta[tail]))
+        return float(log_p - np.sum(np.log(hi[box] - lo[box])))
 
-    def precision(self, family: shapes.Family) -> np.ndarray:
-        """Curvature a uniform prior stands for (1 / its variance); zero where the prior is Gaussian."""
-        lo, hi = self.bounds(family)
+    def precision(self, family: shapes.Family, theta: np.ndarray) -> np.ndarray:
+        """Curvature a uniform prior stands for (1 / its variance) within the branch θ is on; zero where
+        the prior is Gaussian."""
+        lo, hi = self.branch_bounds(family, theta)
         box = np.isfinite(lo)
         out = np.zeros(family.size)
         out[box] = 12.0 / (hi[box] - lo[box]) ** 2
         return out
+
+
+def profile_branch(tail: float) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The ranges of λ and log s on the side of the Hill profile (λ = 0) that `tail` is on."""
+    top = math.log(EDGE_SHARPNESS[1])
+    if tail < 0.0:
+        return (shapes.TAIL_RANGE[0], 0.0), (math.log(COMPACT_SHARPNESS_FLOOR), top)
+    return (0.0, shapes.TAIL_RANGE[1]), (math.log(EDGE_SHARPNESS[0]), top)
+
+
+@lru_cache(maxsize=2)
+def _branch_log_density(compact: bool) -> float:
+    (tail_lo, tail_hi), (sharp_lo, sharp_hi) = profile_branch(-1.0 if compact else 0.0)
+    share = ENDING_TAILS if compact else 1.0 - ENDING_TAILS
+    return math.log(share / ((tail_hi - tail_lo) * (sharp_hi - sharp_lo)))
+
+
+def _log_profile_density(tail: float) -> float:
+    """log p(λ, log s) of a lump's profile: uniform over its branch's box (`profile_branch`), the branches
+    weighted by ENDING_TAILS."""
+    return _branch_log_density(tail < 0.0)
 
 
 @lru_cache(maxsize=64)

@@ -13,7 +13,12 @@ is a flat top with a sharp edge, small s a wide, gradual rise. p = 1 over the
 centre and ½ at ρ = 1 for every s and λ. λ = 0 is the Hill profile
 1/(1 + ρ^s), whose tails fall off as a power (a hard inclusion felt through
 tissue); λ > 0 makes them fall off as exp(−λ·ρ^s) (s = 2, λ ≈ 0.7 is a
-Gaussian bump): one family for lumps from sharp to gradual, whatever their tails.
+Gaussian bump); λ < 0 ends them at a finite distance, h = u·(1 − c)/(1 − c·u)
+with c = −λ/2 and u = ρ^s, so p = 0 from ρ^s = 1/c on (s = 2, c = ½ is a
+paraboloid cap 1 − ρ²/2; a cone, a plateau with a ramp). One family for lumps
+from sharp to gradual, whatever their tails. The two tail branches meet at the
+Hill profile, where either thins the tails: a fit stays on the branch it
+started on (priors.branch_bounds), and fits from both compete by evidence.
 Where lumps come close the stiffer one is felt (the max). Working in log
 stiffness keeps readings comparable from 0.005 to 50 N/mm and turns a relative
 error into a constant one.
@@ -30,7 +35,7 @@ import numpy as np
 BACKGROUND_PARAMS = 3
 CIRCLE_PARAMS = 6
 ELLIPSE_PARAMS = 8
-TAIL_RANGE = (0.0, 1.5)
+TAIL_RANGE = (-1.2, 1.5)  # λ: to c = 0.6 (ending at ρ^s = 1.67) on one side, to Gaussian-like tails on the other
 TINY = 1e-12
 
 
@@ -139,6 +144,8 @@ def _log_h(log_u: np.ndarray, tail: np.ndarray, derivatives: bool = True):
     for all columns at once (lumps from many starts are evaluated together: a loop over them would cost
     a dozen numpy calls each)."""
     u = np.exp(log_u)
+    if np.any(tail < 0.0):
+        return _log_h_branches(log_u, u, tail, derivatives)
     hill = tail < 1e-4
     if hill.all():
         return log_u + tail * (u - 1.0) / 2.0, *((1.0 + tail * u / 2.0, (u - 1.0) / 2.0) if derivatives else (None, None))
@@ -156,10 +163,30 @@ def _log_h(log_u: np.ndarray, tail: np.ndarray, derivatives: bool = True):
     return (t, dt_dlog_u, dt_dtail) if derivatives else (t, None, None)
 
 
+def _log_h_branches(log_u: np.ndarray, u: np.ndarray, tail: np.ndarray, derivatives: bool):
+    """_log_h where some lumps end at a finite distance (λ < 0): each column from its own branch."""
+    compact = tail < 0.0
+    t, dt_dlog_u, dt_dtail = _log_h(log_u, np.where(compact, 0.0, tail), derivatives)
+    c = np.broadcast_to(-0.5 * np.minimum(tail, 0.0), u.shape)
+    cu = c * u
+    inside = cu < 1.0 - 1e-12
+    rest = np.where(inside, 1.0 - cu, 1.0)
+    t_compact = np.where(inside, log_u + np.log1p(-c) - np.log(rest), 700.0)  # past the end: p = 0
+    t = np.where(compact, t_compact, t)
+    if not derivatives:
+        return t, None, None
+    dt_dlog_u = np.where(compact, np.where(inside, 1.0 / rest, 0.0), dt_dlog_u)
+    dt_dtail = np.where(compact, np.where(inside, 0.5 / (1.0 - c) - 0.5 * u / rest, 0.0), dt_dtail)
+    return t, dt_dlog_u, dt_dtail
+
+
 def rho_at(params: np.ndarray, t: float) -> float:
     """ρ where a lump's log h equals t (its 1/(1 + eᵗ) level)."""
     tail, s = params[-3], math.exp(params[-2])
-    if tail < 1e-4:
+    if tail < 0.0:  # h = u(1 − c)/(1 − cu): u = h / (1 − c + c·h)
+        c, h = -0.5 * tail, math.exp(min(t, 700.0))
+        log_u = t - math.log(1.0 - c + c * h) if h < 1e300 else -math.log(c)
+    elif tail < 1e-4:
         log_u = t
     else:
         x = math.log1p(math.exp(min(t + math.log(math.expm1(tail)), 700.0)))  # λu
