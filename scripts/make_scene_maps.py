@@ -31,10 +31,11 @@ opposite edges), to try the learner on what it was not developed on (README, "La
 
     .venv/bin/python scripts/make_scene_maps.py --profiles DIR
 
-writes seven more, lumps whose profiles the simulator does not make (a cone, two Gaussian bumps, a flat
+writes eleven more, lumps whose profiles the simulator does not make (a cone, two Gaussian bumps, a flat
 top with a linear ramp, an ellipse ending near the tissue's edge, a stiff region around a corner of an
-80 × 60 mm tissue, a lump on a background that stiffens across the tissue) and plain tissue with 2 %
-noise: the same kind of try (README, "Latest").
+80 × 60 mm tissue, a lump on a background that stiffens across the tissue, plain tissue with 2 % noise;
+then four lumps whose rise ends: a low cone, a large cone, a paraboloid's cap, a flat top with a wide
+ramp): the same kind of try (README, "Tried beyond" and "Latest").
 """
 from __future__ import annotations
 
@@ -141,6 +142,13 @@ PROFILES = {
         1 + 4 / (1 + (_distance(p, 8, 9) / 6) ** 8))),
     # no lump: plain tissue with 2 % noise on a 1.5 mm grid
     "plain": ((60, 60), 1.5, 0.02, lambda p: np.full(len(p), TISSUE)),
+    # lumps whose rise ends (after the seven above, whose noise it leaves as it was): a low cone (2x, meeting
+    # the tissue 12 mm out, half height 6 mm out), a large one (10x, 20 mm, 10 mm), a paraboloid's cap (4x,
+    # 12 mm, 8.49 mm) and a flat top of 4 mm with a 10 mm linear ramp (4.3x, half height 9 mm out)
+    "low-cone": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.12 * np.clip(1 - _distance(p, -4, 2) / 12, 0, 1)),
+    "big-cone": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 1.08 * np.clip(1 - _distance(p, 3, 3) / 20, 0, 1)),
+    "cap": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.36 * np.clip(1 - (_distance(p, 2, -6) / 12) ** 2, 0, 1)),
+    "ramp": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.40 * np.clip((14 - _distance(p, -3, 5)) / 10, 0, 1)),
 }
 REGION_SCENE = """name = "{name}"
 seed = 4

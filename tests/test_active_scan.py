@@ -31,16 +31,19 @@ PLAIN_80 = Scene(name="plain-80", tissue={"size_mm": [80.0, 80.0], "stiffness_n_
 UNSHIPPED = {scene.name: scene for scene in (CENTRED_SMALL_LUMP, PLAIN_80)}
 
 
+def active_scan(scene: Scene, seed: int = 0) -> tuple[dict, dict]:
+    """`palpd scan --strategy active --seed SEED` on the scene with default settings: its report, and how it
+    compares with the scene's truth."""
+    settings = Settings().updated(scan={"strategy": "active"})
+    planner = plan("active", scene.tissue.size_mm, settings.learner.max_palpations, seed, settings)
+    report = run_scan(open_simulated_bench(settings, scene, seed=seed), settings, planner)
+    return report, metrics.compare(metrics.scene_truth(scene), report["lumps"], scene.tissue.size_mm)
+
+
 @pytest.fixture(scope="module")
 def scans() -> dict:
-    out = {}
-    for name in SCENE_NAMES + tuple(UNSHIPPED):
-        scene = UNSHIPPED[name] if name in UNSHIPPED else load_scene(SCENES / f"{name}.toml")
-        settings = Settings().updated(scan={"strategy": "active"})
-        planner = plan("active", scene.tissue.size_mm, settings.learner.max_palpations, 0, settings)
-        report = run_scan(open_simulated_bench(settings, scene), settings, planner)
-        out[name] = (report, metrics.compare(metrics.scene_truth(scene), report["lumps"], scene.tissue.size_mm))
-    return out
+    return {name: active_scan(UNSHIPPED[name] if name in UNSHIPPED else load_scene(SCENES / f"{name}.toml"))
+            for name in SCENE_NAMES + tuple(UNSHIPPED)}
 
 
 @pytest.mark.parametrize("name", ["no-lump", "textured-no-lump"])
@@ -132,11 +135,7 @@ def test_no_stop_on_a_reading_that_just_moved_the_radius_further_than_the_tolera
     (tmp_path / "rise.toml").write_text('name = "rise"\nseed = 2\n[tissue]\nsize_mm = [60.0, 60.0]\n'
                                         'stiffness_n_per_mm = 0.12\nmap = "rise.csv"\n[sensor]\nnoise_n = 0.01\n'
                                         'tilt = true\n')
-    scene = load_scene(tmp_path / "rise.toml")
-    settings = Settings().updated(scan={"strategy": "active"})
-    planner = plan("active", scene.tissue.size_mm, settings.learner.max_palpations, 0, settings)
-    report = run_scan(open_simulated_bench(settings, scene), settings, planner)
-    m = metrics.compare(metrics.scene_truth(scene), report["lumps"], scene.tissue.size_mm)
+    report, m = active_scan(load_scene(tmp_path / "rise.toml"))
     assert report["verdict"] == "lumps" and m["lumps_found"] == 1 and m["false_lumps"] == 0
     assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5, (report["palpations"], m)
 
@@ -146,11 +145,7 @@ def test_a_lump_that_rises_to_a_point_is_pinned_at_its_half_height():
     tails never ended, and its best fit drew a plateau under the top and the half-height 0.5-2.3 mm too far
     out on such maps (this seed: 0.53 mm, IoU 0.89), the map's texture hiding the misfit. (Seed 0 still stops
     at 15 palpations on tails that never end, 1.4 mm wide: README, "Still open".)"""
-    scene = load_scene(SCENES / "cone-lump.toml")
-    settings = Settings().updated(scan={"strategy": "active"})
-    planner = plan("active", scene.tissue.size_mm, settings.learner.max_palpations, 1, settings)
-    report = run_scan(open_simulated_bench(settings, scene, seed=1), settings, planner)  # as `palpd scan --seed 1`
-    m = metrics.compare(metrics.scene_truth(scene), report["lumps"], scene.tissue.size_mm)
+    report, m = active_scan(load_scene(SCENES / "cone-lump.toml"), seed=1)
     assert report["verdict"] == "lumps" and report["model"]["chosen"] == "circles:1", report["model"]
     assert m["lumps_found"] == 1 and m["false_lumps"] == 0, m
     assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5 and m["min_iou"] >= 0.9, m
@@ -162,11 +157,7 @@ def test_three_lumps_that_nearly_touch_on_a_measured_map_are_three_circles():
     lumps stayed in every count built on it; the scan stopped at 27 palpations on that one circle (its σ_w 8.6x
     the floor, taken for the map's texture) while four circles, one a sliver, fitted the readings to the floor.
     A count is now also started from the next one's fit without each of its lumps (hypotheses._dropped)."""
-    scene = load_scene(SCENES / "touching-lumps-map.toml")
-    settings = Settings().updated(scan={"strategy": "active"})
-    planner = plan("active", scene.tissue.size_mm, settings.learner.max_palpations, 2, settings)
-    report = run_scan(open_simulated_bench(settings, scene, seed=2), settings, planner)  # as `palpd scan --seed 2`
-    m = metrics.compare(metrics.scene_truth(scene), report["lumps"], scene.tissue.size_mm)
+    report, m = active_scan(load_scene(SCENES / "touching-lumps-map.toml"), seed=2)
     assert report["verdict"] == "lumps" and report["model"]["chosen"] == "circles:3", report["model"]
     assert m["lumps_found"] == 3 and m["false_lumps"] == 0, m
     assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5, m

@@ -1,3 +1,5 @@
+import math
+
 import pytest
 
 from conftest import ROOT, SCENES, assert_one_line_error
@@ -179,8 +181,9 @@ def test_the_varied_scenes_reach_past_the_random_ones_and_are_reproducible():
 
 
 def test_the_profile_maps_the_learner_is_tried_on_load_and_hold_their_lumps(tmp_path):
-    """scripts/make_scene_maps.py --profiles DIR (README, "Tried beyond"): seven scenes that load, the same
-    bytes when written again, and a truth of one lump each (two for two-bumps, none for plain tissue)."""
+    """scripts/make_scene_maps.py --profiles DIR (README, "Tried beyond" and "Latest"): eleven scenes that load,
+    the same bytes when written again, and a truth of one lump each (two for two-bumps, none for plain tissue);
+    the half-height of a cone, a cap and a ramp where their formulas put it."""
     import subprocess
     import sys
 
@@ -190,13 +193,16 @@ def test_the_profile_maps_the_learner_is_tried_on_load_and_hold_their_lumps(tmp_
         subprocess.run([sys.executable, str(ROOT / "scripts" / "make_scene_maps.py"), "--profiles", str(out)],
                        check=True, capture_output=True, timeout=60)
     scenes = sorted((tmp_path / "a").glob("*.toml"))
-    assert [p.stem for p in scenes] == ["cone", "corner", "ellipse-at-edge", "plain", "plateau", "sloped-lump",
-                                        "two-bumps"]
+    assert [p.stem for p in scenes] == ["big-cone", "cap", "cone", "corner", "ellipse-at-edge", "low-cone", "plain",
+                                        "plateau", "ramp", "sloped-lump", "two-bumps"]
+    half_height_mm = {"cone": 7.0, "low-cone": 6.0, "big-cone": 10.0, "cap": 12.0 / math.sqrt(2.0), "ramp": 9.0}
     for path in scenes:
         csv = path.with_suffix(".csv")
         assert csv.read_bytes() == (tmp_path / "b" / csv.name).read_bytes()
         truth = metrics.scene_truth(load_scene(path))
         assert len(truth) == {"plain": 0, "two-bumps": 2}.get(path.stem, 1), (path.stem, truth)
+        if path.stem in half_height_mm:  # within the 2 % noise's lift of the top the truth is measured under
+            assert truth[0]["radius_mm"] == pytest.approx(half_height_mm[path.stem], abs=0.6), (path.stem, truth)
 
 
 def test_the_region_maps_the_learner_is_tried_on_load_and_hold_a_stiff_region(tmp_path):
