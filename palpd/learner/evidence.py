@@ -145,7 +145,7 @@ def fit(family: shapes.Family, obs: Observations, priors: Priors, starts: list[n
         return None
     alternatives = _alternatives(best, modes)
     theta = best.theta
-    lo, hi = priors.branch_bounds(family, theta)
+    lo, hi = priors.branch_bounds(family, theta)  # (tails that ended on the Hill profile go on as the other branch)
     for _ in range(2):  # σ_w from the residuals, then the fit again at that σ_w
         f, _ = shapes.evaluate(family, theta, obs.xy, jacobian=False)
         exact = obs.exact
