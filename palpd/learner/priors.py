@@ -50,18 +50,13 @@ class Priors:
         the Hill profile (λ = 0) it is on. The two branches meet there with their slopes of opposite
         sign (each thins the tails), so a step across is a kink the solver would stall on; a fit from
         each side competes by evidence instead (shapes.py)."""
-        lo, hi = self.bounds(family)
         theta = np.asarray(theta, dtype=float)
-        lo, hi = np.broadcast_to(lo, theta.shape).copy(), np.broadcast_to(hi, theta.shape).copy()
-        (compact_tail, compact_sharp), (smooth_tail, smooth_sharp) = profile_branch(-1.0), profile_branch(0.0)
-        for j in range(family.k):
-            tail = family.lump_slice(j).stop - 3  # [.., λ, log s, log a]
-            compact = theta[..., tail] < 0.0
-            for i, (compact_range, smooth_range) in ((tail, (compact_tail, smooth_tail)),
-                                                     (tail + 1, (compact_sharp, smooth_sharp))):
-                lo[..., i] = np.where(compact, compact_range[0], smooth_range[0])
-                hi[..., i] = np.where(compact, compact_range[1], smooth_range[1])
-        return lo, hi
+        tails = theta[..., [family.lump_slice(j).stop - 3 for j in range(family.k)]] < 0.0  # [.., λ, log s, log a]
+        if theta.ndim == 1:
+            return _branch_bounds(self.size_mm, self.min_contrast, family.kind, family.k, tuple(tails.tolist()))
+        boxes = [_branch_bounds(self.size_mm, self.min_contrast, family.kind, family.k, tuple(row))
+                 for row in tails.tolist()]
+        return np.array([lo for lo, _ in boxes]), np.array([hi for _, hi in boxes])
 
     def _lump_box(self, ellipse: bool) -> list[tuple[float, float]]:
         margin = CENTRE_MARGIN * max(self.size_mm)
@@ -116,6 +111,20 @@ def _log_profile_density(tail: float) -> float:
     """log p(λ, log s) of a lump's profile: uniform over its branch's box (`profile_branch`), the branches
     weighted by ENDING_TAILS."""
     return _branch_log_density(tail < 0.0)
+
+
+@lru_cache(maxsize=256)
+def _branch_bounds(size_mm, min_contrast, kind, k, compact: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """`Priors.branch_bounds` for one parameter vector, its lumps' branches given (cached as `_bounds`: every
+    fit, Kalman step and evidence asks for it)."""
+    lo, hi = (array.copy() for array in _bounds(size_mm, min_contrast, kind, k))
+    family = shapes.Family(kind, k, 1.0)
+    for j, ending in enumerate(compact):
+        tail = family.lump_slice(j).stop - 3
+        (lo[tail], hi[tail]), (lo[tail + 1], hi[tail + 1]) = profile_branch(-1.0 if ending else 0.0)
+    for array in (lo, hi):
+        array.flags.writeable = False
+    return lo, hi
 
 
 @lru_cache(maxsize=64)
