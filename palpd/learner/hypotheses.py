@@ -27,7 +27,7 @@ RESIZE = (0.6, 1.6)
 LIGHT_ITERATIONS = 12  # a refit spread over many readings takes at most this many steps (it starts warm)
 CONTENDER_WEIGHT = 1e-3  # a hypothesis this likely gets fresh starts as soon as a reading surprises it
 START_SHARPNESS = 6.0
-STRAINED_TAIL = 0.05  # a lump's λ this near the top of its range: tails as thin as the branch allows
+STRAINED_TAIL = 0.05  # a lump's λ this near the top of its range: tails as thin as never-ending ones can be
 COMPACT_START = -0.5  # λ of a start whose tails end (at ρ² = 4 with s = 2, as a cone of the same half-height)
 ELLIPSE_START_STRETCH = 0.4  # log axis ratio an ellipse start is given along a region's long axis
 NEGLIGIBLE_NATS = 7.0  # a hypothesis whose Laplace evidence (an upper bound of its checked one) is this far
@@ -184,8 +184,8 @@ class Hypotheses:
 
     def _profile_strained(self, fit: Fit) -> bool:
         """Whether a fit's lump profiles may belong on the other tail branch (shapes.py): it misses its
-        readings (σ_w over ADEQUATE_NOISE times the floor), or a lump's tails are as thin as its branch
-        lets them be (the mode lies beyond, where the other branch goes on thinning them)."""
+        readings (σ_w over ADEQUATE_NOISE times the floor), or a lump's tails are as thin as tails that
+        never end can be (the mode may lie beyond, among tails that end)."""
         if fit.noise_sd > evidence.ADEQUATE_NOISE * self.noise_floor:
             return True
         for j in range(fit.family.k):
