@@ -27,6 +27,9 @@ RESIZE = (0.6, 1.6)
 LIGHT_ITERATIONS = 12  # a refit spread over many readings takes at most this many steps (it starts warm)
 CONTENDER_WEIGHT = 1e-3  # a hypothesis this likely gets fresh starts as soon as a reading surprises it
 START_SHARPNESS = 6.0
+# σ_w this far over the floor: the profile may miss what the readings show (an estimate from n readings has a
+# relative sd of about 1/√(2n), 0.16 at 20: half again the floor is 3 of those)
+PROFILE_MISFIT = 1.5
 STRAINED_TAIL = 0.05  # a lump's λ this near the top of its range: tails as thin as never-ending ones can be
 COMPACT_START = -0.5  # λ of a start whose tails end (at ρ² = 4 with s = 2, as a cone of the same half-height)
 ELLIPSE_START_STRETCH = 0.4  # log axis ratio an ellipse start is given along a region's long axis
@@ -184,9 +187,9 @@ class Hypotheses:
 
     def _profile_strained(self, fit: Fit) -> bool:
         """Whether a fit's lump profiles may belong on the other tail branch (shapes.py): it misses its
-        readings (σ_w over ADEQUATE_NOISE times the floor), or a lump's tails are as thin as tails that
+        readings (σ_w over PROFILE_MISFIT times the floor), or a lump's tails are as thin as tails that
         never end can be (the mode may lie beyond, among tails that end)."""
-        if fit.noise_sd > evidence.ADEQUATE_NOISE * self.noise_floor:
+        if fit.noise_sd > PROFILE_MISFIT * self.noise_floor:
             return True
         for j in range(fit.family.k):
             tail = fit.theta[fit.family.lump_slice(j).stop - 3]
