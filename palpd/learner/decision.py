@@ -140,12 +140,12 @@ class Decision:
         fit = self.chosen_fit()
         if fit is None or fit.family.k == 0:
             return True  # the free-form map or `none`: no centre or radius reported from parameters
-        return self._settled_before and self._moved_within_sds()
+        return self._settled_before and self._moved_within_sds(fit)
 
-    def _moved_within_sds(self) -> bool:
-        """The newest reading moved no reported centre coordinate or radius beyond what the sds before it
-        allowed, nor beyond the tolerance, and the model is the one before it (`_settled`)."""
-        fit = self.chosen_fit()
+    def _moved_within_sds(self, fit: Fit | None) -> bool:
+        """The newest reading moved no reported centre coordinate or radius of `fit` (the chosen fit after
+        it) beyond what the sds before it allowed, nor beyond the tolerance, and the model is the one before
+        it (`_settled`). True without a lump model: nothing is reported from parameters."""
         if fit is None or fit.family.k == 0:
             return True
         before = self._fit_before

@@ -87,7 +87,7 @@ class Learner(Decision):
         value = stiffness_n_per_mm if outcome == "fit" else bound_n_per_mm
         fit_before = None if self.choice is None else self.chosen_fit()  # what the newest reading may move
         chosen_before = None if self.choice is None else self.choice.chosen
-        settled_before = self.choice is not None and self._moved_within_sds()
+        settled_before = self.choice is not None and self._moved_within_sds(fit_before)  # (it is the fit now)
         if not self.obs.add(xy, outcome, value, sd_n_per_mm if outcome == "fit" else 0.0):
             self.coverage.probed(xy)  # no reading, but looked at
             return
