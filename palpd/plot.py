@@ -24,7 +24,7 @@ from palpd.errors import PalpdError  # noqa: E402
 
 TITLE_WIDTH = 90  # characters per line of the title's last line, why a scan ended undetermined
 MIN_CONTRAST = 0.3  # the stiffness colour scale spans at least this fraction of the median (scan.min_contrast)
-LUMP, TRUTH, FAILED = "#d0009c", "k", "#c00000"
+LUMP, TRUTH, FAILED, SOFT = "#d0009c", "k", "#c00000", "#1f77b4"
 
 
 def plot_scan(report: dict, size_mm: tuple[float, float], path: str | Path, posterior: dict | None = None) -> None:
@@ -38,6 +38,7 @@ def plot_scan(report: dict, size_mm: tuple[float, float], path: str | Path, post
     draw_probes(fig, ax, report["probes"])
     draw_truth(ax, report.get("truth", {}).get("lumps", []))
     draw_lumps(ax, report["lumps"], report.get("model"))
+    draw_soft_regions(ax, report.get("model"))
     ax.set(xlim=(-half_w - 5, half_w + 5), ylim=(-half_h - 5, half_h + 5), aspect="equal",
            xlabel="x (mm, tissue frame)", ylabel="y (mm, tissue frame)", title=_title(report))
     if ax.get_legend_handles_labels()[0]:
@@ -123,6 +124,13 @@ def draw_lumps(ax, lumps: list[dict], model: dict | None = None) -> None:
                 label=(f"estimated lump ({chosen})" if chosen else "estimated lump") if i == 0 else None)
         ax.add_patch(Circle(centre, max(lump["center_sd_mm"], 0.2), color=LUMP, alpha=0.35, zorder=6,
                             label="centre ± 1 sd" if i == 0 else None))
+
+
+def draw_soft_regions(ax, model: dict | None) -> None:
+    """The soft regions the chosen model draws (none+soft:1): no lump, tissue softer there, dashed."""
+    for i, soft in enumerate((model or {}).get("soft_regions") or []):
+        ax.plot(*np.asarray(soft["boundary_mm"], dtype=float).T, color=SOFT, lw=1.5, ls="--", zorder=6,
+                label="soft region (no lump)" if i == 0 else None)
 
 
 def draw_truth(ax, lumps: list[dict]) -> None:

@@ -1,6 +1,6 @@
 """--strategy active end to end (simulated time, the real control and fit code): one set of scans, made once.
 
-The scenes: plain tissue (`none`, quickly) and the same with 5 % texture, a small lump at the tissue's centre, an elongated lump from a measured map (an ellipse, not a
+The scenes: plain tissue (`none`, quickly), the same with 5 % texture and with a soft inclusion, a small lump at the tissue's centre, an elongated lump from a measured map (an ellipse, not a
 circle), a deep lump with a wide edge (one circle, not two), a textured measured map whose stiff region
 runs past the tissue's edges (decided, and reported by its part on the tissue); and, at seeds of their
 own, a measured map of a lump that rises to a point (its half-height pinned) and three lumps that nearly touch.
@@ -14,10 +14,13 @@ from conftest import SCENES
 from drivers.sim.scene import Scene, load_scene
 from palpd import metrics
 from palpd.bench import open_simulated_bench
+from palpd.bus.messages import ModelChoice
+from palpd.commands.scan import _verdict_line
 from palpd.config import Settings
+from palpd.plot import plot_scan
 from palpd.scan import plan, run_scan
 
-SCENE_NAMES = ("no-lump", "textured-no-lump", "elongated-lump", "deep-lump", "textured-half-map")
+SCENE_NAMES = ("no-lump", "textured-no-lump", "elongated-lump", "deep-lump", "textured-half-map", "soft-cyst")
 
 
 # Not shipped: the covering lattice of a 60 mm square has its widest hole at the centre, where a user puts a lump.
@@ -63,6 +66,21 @@ def test_plain_tissue_wider_than_60_mm_is_none_within_20_palpations_and_says_wha
     assert report["faults"] == [] and report["verdict"] == "none" and m["false_lumps"] == 0
     assert report["palpations"] <= 20, report["palpations"]
     assert 11.0 < report["model"]["unfelt_radius_mm"] <= Settings().learner.coverage_mm, report["model"]
+
+
+def test_tissue_with_a_soft_inclusion_is_none_within_20_palpations_and_the_model_draws_where_it_is_soft(scans, tmp_path):
+    """A cyst 3x softer than the tissue: before `none+soft:1`, no model had room for it and the scan ended
+    `undetermined` at the budget, a stiff half-disc beside the cyst its likeliest answer."""
+    report, m = scans["soft-cyst"]
+    assert report["faults"] == [] and report["verdict"] == "none" and report["lumps"] == [], report["model"]
+    assert report["model"]["chosen"] == "none+soft:1" and report["model"]["weight"] >= 0.9, report["model"]
+    assert report["palpations"] <= 20 and m["false_lumps"] == 0 and m["lumps_true"] == 0
+    (soft,) = report["model"]["soft_regions"]
+    assert math.dist(soft["center_mm"], (-6.0, 8.0)) < soft["radius_mm"] and soft["softer"] > 2.0, soft
+    ModelChoice.model_validate(report["model"])  # the estimate event's schema holds it
+    assert "no lump (tissue " in _verdict_line(report) and "x softer around (" in _verdict_line(report)
+    plot_scan(report, (60.0, 60.0), tmp_path / "soft.png")  # the picture draws it dashed
+    assert (tmp_path / "soft.png").stat().st_size > 10_000
 
 
 def test_a_small_lump_at_the_tissue_centre_is_found_not_called_none(scans):

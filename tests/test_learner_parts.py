@@ -145,15 +145,17 @@ def test_the_kernel_relearn_finds_scikit_learns_optimum(n, contrast, noise_sd, s
 @hsettings(max_examples=40, deadline=None)
 @given(ellipse=st.booleans(), tail=st.floats(*shapes.TAIL_RANGE).filter(lambda t: abs(t) > 1e-5),
        sharpness=st.floats(1.0, 60.0), radius=st.floats(0.5, 30.0), stretch=st.floats(-2.0, 2.0),
-       seed=st.integers(0, 999))
+       seed=st.integers(0, 999), soft=st.booleans())
 def test_every_lump_profile_is_half_high_on_its_boundary_and_its_jacobian_is_its_derivative(
-        ellipse, tail, sharpness, radius, stretch, seed):
+        ellipse, tail, sharpness, radius, stretch, seed, soft):
     """Both tail branches (shapes.py): p = ½ on the 50 % boundary whatever the tails; tails that end are
     zero from ρ^s = 1/c on, where the others never are; and the Jacobian the solver steps by is the
-    derivative of the values, out to and past the end of tails that end."""
-    family = shapes.Family("ellipses" if ellipse else "circles", 1, 30.0)
+    derivative of the values, out to and past the end of tails that end, with a soft region beside the
+    lump or not (its profile the same, drawn the other way)."""
+    family = shapes.Family("ellipses" if ellipse else "circles", 1, 30.0, soft=int(soft))
     lump = shapes.make_lump((2.0, -3.0), radius, sharpness, 2.0, (stretch, 0.5 * stretch) if ellipse else None, tail)
-    theta = np.concatenate([[math.log(0.12), 0.01, -0.02], lump])
+    dip = shapes.make_lump((-9.0, 6.0), 0.7 * radius, 0.5 * sharpness + 1.0, 0.9, None, -tail) if soft else []
+    theta = np.concatenate([[math.log(0.12), 0.01, -0.02], lump, dip])
     boundary = shapes.boundary_polygon(lump, ellipse)[:-1]
     assert np.allclose(shapes.heights_of(family, theta, boundary)[:, 0], 1.0, rtol=1e-6)  # a·p = 2 · ½
     far = shapes.boundary_polygon(np.concatenate([lump[:2], [lump[2] + math.log(3.0) / sharpness], lump[3:]]),
@@ -169,6 +171,72 @@ def test_every_lump_profile_is_half_high_on_its_boundary_and_its_jacobian_is_its
         down[i] -= step
         numeric = (shapes.evaluate(family, up, xy, False)[0] - shapes.evaluate(family, down, xy, False)[0]) / (2 * step)
         assert np.allclose(jac[:, i], numeric, rtol=1e-4, atol=1e-5), (i, np.abs(jac[:, i] - numeric).max())
+
+
+def test_a_soft_disc_is_no_lump_on_tissue_softer_there_not_a_lump_around_it():
+    """Tissue 3x softer over a disc (a cyst, fat) is `none+soft:1`: no lump, the disc where the readings dip.
+    Before, the only models with room for it were lumps, and one stood for the tissue around the disc (a stiff
+    half-disc beside it, 38 times the noise floor: undetermined at the budget)."""
+    centre, radius = np.array([4.0, 7.0]), 10.0
+    soft = lambda p: 0.12 * (1.0 - (2.0 / 3.0) / (1.0 + (math.dist(p, centre) / radius) ** 8))  # noqa: E731
+    inside = [tuple(centre + r * np.array([math.cos(t), math.sin(t)])) for r in (0.0, 5.0) for t in (0.0, 2.1, 4.2)]
+    obs = readings(soft, lattice() + inside)
+    hypotheses = Hypotheses((60.0, 60.0), 0.3, 0.01)
+    hypotheses.update(obs, [], math.log(0.12))
+    choice = hypotheses.choice(None, obs)
+    assert choice.chosen == "none+soft:1" and choice.weight > 0.99, choice
+    dip = hypotheses.fits["none+soft:1"].theta[3:]
+    assert math.dist(dip[:2], centre) < 1.0 and abs(math.exp(dip[2]) - radius) < 1.0, dip
+    assert 1.0 + math.exp(dip[-1]) == pytest.approx(3.0, rel=0.1)  # 3x softer at its core
+    flat = readings(lambda p: 0.12, lattice())
+    plain = Hypotheses((60.0, 60.0), 0.3, 0.01)
+    plain.update(flat, [], math.log(0.12))
+    assert plain.choice(None, flat).chosen == "none" and "none+soft:1" not in plain.fits  # nothing below to try
+
+
+def test_a_soft_region_has_tissue_around_it_a_disc_past_the_tissue_edge_is_not_one():
+    """Softer past the tissue's edge is as much the soft side of a stiff region as a soft region: the
+    half-stiff map (a smooth stiff region over half the tissue) was read as a soft disc over its soft half,
+    `none`. The prior holds a soft region's 50 % boundary on the tissue, as a residual whose Jacobian the
+    solver steps by."""
+    from palpd.learner import evidence
+    from palpd.learner.priors import Priors
+
+    priors, family = Priors((60.0, 40.0), 0.3, 0.0), shapes.Family("circles", 1, 30.0, soft=1)
+    lump = shapes.make_lump((5.0, 0.0), 4.0, 6.0, 2.0)
+    def residuals(centre, radius):
+        theta = np.concatenate([[0.0, 0.0, 0.0], lump, shapes.make_lump(centre, radius, 4.0, 1.0)])
+        return theta, evidence.prior_residuals(family, theta, priors)
+    _, (inside, _) = residuals((-10.0, 5.0), 12.0)  # reaches x = -22, y = 17: on the 60 x 40 mm tissue
+    assert np.all(inside[3:] == 0.0)
+    theta, (past, jac) = residuals((-20.0, 5.0), 16.0)  # to x = -36 and y = 21: 6 and 1 mm past the edges
+    assert past[3:] == pytest.approx([6.0 / evidence.OVERLAP_MM, 1.0 / evidence.OVERLAP_MM])
+    for i in range(family.size):
+        step = np.zeros(family.size)
+        step[i] = 1e-6
+        numeric = (evidence.prior_residuals(family, theta + step, priors)[0]
+                   - evidence.prior_residuals(family, theta - step, priors)[0]) / 2e-6
+        assert np.allclose(jac[:, i], numeric, atol=1e-5), i
+
+
+def test_a_lump_beside_a_soft_disc_is_one_lump_on_tissue_softer_there():
+    """The soft region goes with the likeliest count of lumps too: a lump 6x stiffer beside a soft disc is
+    `circles:1+soft:1`, the lump where it is (circles:1 alone missed the disc's readings, undetermined)."""
+    centre, lump = np.array([-10.0, 10.0]), np.array([12.0, -10.0])
+    def k_at(p):
+        soft = 1.0 - (2.0 / 3.0) / (1.0 + (math.dist(p, centre) / 12.0) ** 8)
+        return 0.12 * soft * (1.0 + 5.0 / (1.0 + (math.dist(p, lump) / 7.0) ** 8))
+    inside = [tuple(c + r * np.array([math.cos(t), math.sin(t)])) for c in (centre, lump) for r in (0.0, 5.0, 8.0)
+              for t in (0.0, 2.1, 4.2)]
+    hypotheses = Hypotheses((60.0, 60.0), 0.3, 0.01)
+    for points in (lattice(9.0), lattice(9.0) + inside):  # as a scan reads: a covering first, then closer
+        obs = readings(k_at, points)
+        hypotheses.update(obs, [], math.log(0.12))
+        choice = hypotheses.choice(None, obs)
+        assert choice.chosen == "circles:1+soft:1" and choice.weight > 0.99, choice
+    theta = hypotheses.fits[choice.chosen].theta
+    assert math.dist(theta[3:5], lump) < 0.5 and abs(math.exp(theta[5]) - 7.0) < 0.5, theta
+    assert math.dist(theta[9:11], centre) < 1.0, theta
 
 
 def test_the_evidence_picks_one_lump_not_two_two_not_one_and_none_on_flat_tissue():

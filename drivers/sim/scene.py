@@ -165,7 +165,8 @@ def _map_row(path: Path, line: int, row: dict) -> tuple[float, float, float]:
 
 
 def truth_lumps(scene: Scene) -> list[dict]:
-    """The scene's lumps as placed on the bench (after its rotation), in the tissue frame."""
+    """The scene's lumps as placed on the bench (after its rotation), in the tissue frame: those stiffer than
+    the tissue (an inclusion as soft or softer, a cyst or fat, is tissue to palpate, not a lump to find)."""
     from drivers.geometry import rotate_xy
 
     return [
@@ -176,4 +177,5 @@ def truth_lumps(scene: Scene) -> list[dict]:
             "stiffness_n_per_mm": lump.stiffness_n_per_mm,
         }
         for lump in scene.lump
+        if lump.stiffness_n_per_mm > scene.tissue.stiffness_n_per_mm
     ]

@@ -135,12 +135,26 @@ class LumpMsg(BaseModel):
     reading pins them)."""
 
 
+class SoftRegionMsg(BaseModel):
+    """Tissue softer than around it (a cyst, fat): no lump, but part of what the chosen model draws."""
+
+    model_config = SENT
+    center_mm: tuple[float, float]
+    """Centre, tissue frame."""
+    radius_mm: float
+    """Where the tissue is halfway (in log stiffness) between around it and the region's softest."""
+    softer: float
+    """How many times softer its core is than the tissue around it."""
+    boundary_mm: list[tuple[float, float]]
+    """That halfway boundary, a closed polygon [[x, y], ...]."""
+
+
 class ModelChoice(BaseModel):
     """The lump hypothesis the evidence chose."""
 
     model_config = SENT
     chosen: str
-    """`none`, `circles:K`, `ellipse:K` or `free-form`."""
+    """`none`, `circles:K`, `ellipse:K` or `free-form`; `none+soft:1` is no lump on tissue with a soft region."""
     weight: float
     """Its posterior weight among the hypotheses compared."""
     runner_up: Optional[str] = None
@@ -152,6 +166,8 @@ class ModelChoice(BaseModel):
     """Why the choice does not stand yet (null once it does): too few readings, a weight under the confidence
     asked for, no hypothesis that explains the readings to their precision, or a choice one reading old. A scan
     that ends with it set is `undetermined`."""
+    soft_regions: Optional[list[SoftRegionMsg]] = None
+    """Only when the chosen model has one (`none+soft:1`): the soft region it draws."""
 
 
 class Estimate(Event):

@@ -45,8 +45,9 @@ class Decision:
         """{chosen, weight, runner_up, unfelt_radius_mm, undecided} of the scan report and the estimate event."""
         if self.choice is None:
             return None
+        soft = describe.soft_regions_of(self.chosen_fit())
         return self.choice.as_dict() | {"unfelt_radius_mm": round(self.unfelt_radius_mm(), 1),
-                                        "undecided": self.undecided()}
+                                        "undecided": self.undecided()} | ({"soft_regions": soft} if soft else {})
 
     def undecided(self) -> str | None:
         """Why the model choice does not stand yet (None once it does), in the order `_choice_made` asks:
@@ -81,7 +82,7 @@ class Decision:
         return self._cache["lumps"]
 
     def _lumps(self) -> list[LumpEstimate]:
-        if self.choice is None or self.choice.chosen == "none":
+        if self.choice is None or self._no_lump_chosen():
             return []
         fit = self.chosen_fit()
         if fit is not None:
@@ -169,7 +170,7 @@ class Decision:
         a raster scan found it. One palpation more on plain tissue (18); no scan with a lump in the
         tables changed its count."""
         reach = self.settings.coverage_mm
-        if self.choice is None or self.choice.chosen != "none":
+        if self.choice is None or not self._no_lump_chosen():
             return self.coverage.farthest_beyond(reach)
         unexplored = self.coverage.farthest_beyond(min(reach, self.none_reach_mm))
         if unexplored is None and self._centre_unprobed():
@@ -324,7 +325,12 @@ class Decision:
         """`lumps`, `none`, or `undetermined` when the evidence has not decided between them."""
         if not self._choice_made():
             return "undetermined"
-        return "none" if self.choice.chosen == "none" else "lumps"
+        return "none" if self._no_lump_chosen() else "lumps"
+
+    def _no_lump_chosen(self) -> bool:
+        """The choice is a model without lumps: `none`, or none on a background with a soft region."""
+        fit = self.chosen_fit()
+        return fit is not None and fit.family.k == 0
 
     def _choice_made(self) -> bool:
         """Enough readings, a confident choice that the newest reading did not just make, and the chosen

@@ -42,6 +42,18 @@ def lumps_of(fit: Fit, tau_n_per_mm: float | None = None, size_mm=None) -> list[
     return out
 
 
+def soft_regions_of(fit: Fit | None) -> list[dict]:
+    """The soft region of a fit that has one (shapes.py: no lump, tissue softer there), as the model reports
+    it: centre, radius where the stiffness is halfway between the tissue's around and its core's, that boundary,
+    and how many times softer its core is."""
+    if fit is None or not fit.family.soft:
+        return []
+    params = fit.theta[fit.family.soft_slice]
+    return [{"center_mm": [round(float(params[0]), 3), round(float(params[1]), 3)],
+             "radius_mm": round(math.exp(params[2]), 3), "softer": round(1.0 + math.exp(params[-1]), 2),
+             "boundary_mm": np.round(shapes.boundary_polygon(params, False), 3).tolist()}]
+
+
 def quantities(fit: Fit, size_mm=None) -> np.ndarray:
     """Rows of the Jacobian of every reported centre coordinate and radius (or axis) w.r.t. θ (with the tissue's
     size, a lump mostly off it by its part on it)."""

@@ -74,16 +74,38 @@ def prior_residuals(family: shapes.Family, theta: np.ndarray, priors: Priors) ->
     (for S parameter vectors at once too: theta S × size gives S of each)."""
     values = (theta[..., :BACKGROUND] - (priors.level, 0.0, 0.0)) / (LEVEL_SD, SLOPE_SD, SLOPE_SD)
     rows = np.broadcast_to(_background_rows(family.size), theta.shape[:-1] + (3, family.size))
-    if family.k < 2:
+    parts = [(values, rows)]
+    if family.k >= 2:
+        parts.append(_overlaps(family, theta))
+    if family.soft:
+        parts.append(_soft_off_tissue(family, theta, priors))
+    if len(parts) == 1:
         return values, rows
-    overlap, overlap_rows = _overlaps(family, theta)
-    return np.concatenate([values, overlap], axis=-1), np.concatenate([rows, overlap_rows], axis=-2)
+    return np.concatenate([v for v, _ in parts], axis=-1), np.concatenate([r for _, r in parts], axis=-2)
+
+
+def _soft_off_tissue(family: shapes.Family, theta: np.ndarray, priors: Priors) -> tuple[np.ndarray, np.ndarray]:
+    """How far a soft region's 50 % boundary reaches past the tissue's edge along x and y (0 within it), in
+    OVERLAP_MM. Tissue softer in one place has tissue around it; softer past the edge it is as much the soft
+    side of a stiff region as a soft region (the half-stiff map, a smooth stiff region over half the tissue,
+    was read as a disc of soft tissue over its soft half: `none`)."""
+    region = theta[..., family.soft_slice]
+    radius = np.exp(region[..., 2])
+    half = np.asarray(priors.size_mm, dtype=float) / 2.0
+    excess = np.abs(region[..., 0:2]) + radius[..., None] - half  # (..., 2)
+    past = excess > 0
+    rows = np.zeros(theta.shape[:-1] + (2, family.size))
+    start = family.soft_slice.start
+    rows[..., 0, start] = np.sign(region[..., 0])
+    rows[..., 1, start + 1] = np.sign(region[..., 1])
+    rows[..., :, start + 2] = radius[..., None]
+    return np.where(past, excess, 0.0) / OVERLAP_MM, rows * past[..., None] / OVERLAP_MM
 
 
 def _overlaps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """How far each pair of lumps' centres sit inside half their summed radii (0 when apart), in OVERLAP_MM."""
     lead = theta.shape[:-1]
-    lumps = theta[..., BACKGROUND:].reshape(lead + (family.k, family.per_lump))
+    lumps = theta[..., BACKGROUND:family.soft_slice.start].reshape(lead + (family.k, family.per_lump))
     j, m = _pairs(family.k)
     dx, dy = lumps[..., j, 0] - lumps[..., m, 0], lumps[..., j, 1] - lumps[..., m, 1]
     d = np.hypot(dx, dy) + 1e-9
@@ -98,7 +120,8 @@ def _overlaps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.
         rows[..., pair, index, 0] = -sign * dx / d
         rows[..., pair, index, 1] = -sign * dy / d
         rows[..., pair, index, 2] = 0.5 * radius
-    rows = np.concatenate([np.zeros(lead + (len(j), BACKGROUND)), rows.reshape(lead + (len(j), -1))], axis=-1)
+    soft = np.zeros(lead + (len(j), family.soft_slice.stop - family.soft_slice.start))
+    rows = np.concatenate([np.zeros(lead + (len(j), BACKGROUND)), rows.reshape(lead + (len(j), -1)), soft], axis=-1)
     return np.where(inside, excess, 0.0) / OVERLAP_MM, rows * inside[..., None] / OVERLAP_MM
 
 
@@ -258,8 +281,15 @@ def supported(family: shapes.Family, theta: np.ndarray, obs: Observations, noise
     """Every lump is felt at some reading: it is the lump felt most there, and taking it away changes
     an exact reading's prediction by SUPPORT_SIGMA of its noise at the floor (`noise`; not the fit's own
     σ_w, which an unexplained lump elsewhere inflates), or leaves a lower bound ('too stiff') that far
-    above the prediction: a lump whose core readings all hit the force limit is felt there."""
-    return not unfelt(family, theta, obs, noise)
+    above the prediction: a lump whose core readings all hit the force limit is felt there. A soft region
+    likewise: taking it away raises some exact reading's prediction that far."""
+    return not unfelt(family, theta, obs, noise) and (not family.soft or _soft_felt(family, theta, obs, noise))
+
+
+def _soft_felt(family: shapes.Family, theta: np.ndarray, obs: Observations, noise: float) -> bool:
+    exact = obs.exact
+    dip = shapes.soft_dip(family, theta, obs.xy[exact])
+    return bool(np.any(dip >= SUPPORT_SIGMA * np.sqrt(obs.sd[exact] ** 2 + noise**2)))
 
 
 def apart(family: shapes.Family, theta: np.ndarray) -> bool:

@@ -1,5 +1,11 @@
 """The hypotheses about a scene and their posterior weights: none, k circles, k ellipses, free-form.
 
+Each count from `none` up may also hold a soft region (none+soft:1, circles:K+soft:1, shapes.py),
+tried while the likeliest count misses readings below it more than any above (`_soft_wanted`):
+tissue softer in one place is no lump, and lumps could only mimic it by standing for the tissue
+around it (a soft disc was read as a stiff half-disc beside it: undetermined at the budget, 38
+times the noise floor).
+
 Each update refits the parametric hypotheses from several starts: where it was
 last time (warm), from the one with one lump fewer plus a lump at the reading
 it explains worst, from the one with one lump more without each of its lumps,
@@ -125,6 +131,25 @@ class Hypotheses:
                     self.fits[fit.name] = fit
                     seen.append(fit.name)
                 yield 0 if fit is None else fit.work
+        # tissue softer in one place: tried while the likeliest count of lumps apart leaves readings unexplained
+        # below it, or a soft region was in the running (five circles tiling the tissue around a soft disc beside a
+        # lump explain every reading, but are no count of lumps: `apart`), with one lump more while the last
+        # leaves a reading unexplained above it
+        if self._soft_wanted(best_k, obs):
+            fewer = None
+            for k in range(0, best_k + 1):
+                base = self.fits.get(self._name_of(k))
+                if base is None:
+                    break
+                fit = self._soft_fit(base, fewer, obs, priors, max_starts, thorough)
+                if fit is None:
+                    break
+                self.fits[fit.name] = fit
+                seen.append(fit.name)
+                yield fit.work
+                if not self._unexplained(fit, obs).any():
+                    break
+                fewer = fit
         self.fits = {name: self.fits[name] for name in seen}
 
     def assimilate(self, obs: Observations) -> None:
@@ -174,7 +199,7 @@ class Hypotheses:
                     starts.append(_other_tails(old))
         starts = starts[:max_starts]
         iterations = LIGHT_ITERATIONS if max_starts is not None else 60
-        if family.k == 0:
+        if family.size == shapes.BACKGROUND_PARAMS:
             starts = [np.array([priors.level, 0.0, 0.0])] + starts
         if not starts:
             return None
@@ -184,6 +209,64 @@ class Hypotheses:
         fit = evidence.fit(family, obs, priors, starts, self.noise_floor, noise_sd, iterations, give_up=not thorough)
         # a warm start alone finds no other mode: the ridge the last fresh starts found is still the one known
         return replace(fit, alternatives=old.alternatives) if warm_only and fit is not None else fit
+
+    def _soft_wanted(self, best_k: int, obs: Observations) -> bool:
+        """A soft region is worth a fit: one was in the running, or the likeliest count of lumps apart misses a
+        reading below it by more than SUPPORT_SIGMA, and by more than it misses any above it. (Any fit of too
+        few lumps leaves the tissue's readings below it, pulled up by a lump's; what only a soft region
+        explains lies further below than any lump lies above: `none` over a lump and a few readings of tissue
+        had a soft region tried from the fourth reading on, and the scans took other courses.)"""
+        if any(w >= CONTENDER_WEIGHT for name, w in self.weights.items() if "+soft" in name):
+            return True
+        counts = [self.fits.get(self._name_of(k)) for k in range(best_k + 1)]
+        apart = [fit for fit in counts if fit is not None and fit.supported
+                 and evidence.apart(fit.family, fit.theta)] or [self.fits["none"]]
+        fit = max(apart, key=lambda fit: fit.log_evidence)
+        z, _ = self._misses(fit, obs)
+        below = float(np.max(np.where(obs.kind == EXACT, -z, 0.0)))
+        return below > evidence.SUPPORT_SIGMA and below > float(np.max(np.where(obs.kind >= 0, z, 0.0)))
+
+    def _soft_fit(self, base: Fit, fewer: Fit | None, obs: Observations, priors: Priors, max_starts: int | None,
+                  thorough: bool) -> Fit | None:
+        """`base` (none or k circles) on a background with a soft region (shapes.py); `fewer`, the soft fit of
+        one lump fewer, plus a lump at each reading it explains worst from above, starts it too."""
+        family = replace(base.family, soft=1)
+        def starts():
+            out = self._soft_starts(base, obs)
+            if fewer is not None:
+                cut = fewer.family.soft_slice
+                out += [np.concatenate([fewer.theta[:cut.start], lump, fewer.theta[cut]])
+                        for lump in self._new_lumps(fewer, obs)]
+            return out
+        return self._fit(family, obs, priors, starts, max_starts, fresh=family.name not in self.fits, thorough=thorough)
+
+    def _soft_starts(self, base: Fit, obs: Observations) -> list[np.ndarray]:
+        """`base` with a soft region at the reading it explains worst from below, and with its background at
+        the level of the stiffer readings away from its lumps and a soft region over those below that; each
+        region reaching most of the way to the nearest reading it leaves alone."""
+        exact = obs.kind == EXACT
+        below = self._unexplained(base, obs, below=True)
+        away = exact & (shapes.heights_of(base.family, base.theta, obs.xy).max(axis=1, initial=0.0) < 0.05)
+        level = float(np.quantile(obs.y[away], 0.75)) if away.any() else float(base.theta[0])
+        soft = away & (obs.y < level - math.log1p(self.min_contrast))
+        starts = []
+        if below.any():
+            _, f = self._misses(base, obs)
+            worst = int(np.argmin(np.where(below, obs.y - f, np.inf)))  # the deepest in log stiffness
+            starts.append(self._with_soft(base.theta, obs, obs.xy[worst], f[worst] - obs.y[worst], ~below))
+        if soft.any():
+            raised = base.theta.copy()
+            raised[0] = level
+            starts.append(self._with_soft(raised, obs, obs.xy[soft].mean(axis=0),
+                                          level - float(np.median(obs.y[soft])), ~soft))
+        return starts
+
+    def _with_soft(self, theta: np.ndarray, obs: Observations, xy, depth: float, alone: np.ndarray) -> np.ndarray:
+        """θ with a soft region at xy, `depth` lower in log stiffness, reaching most of the way to the nearest
+        reading `alone` marks (one it leaves as it is)."""
+        reach = _nearest(xy, obs.xy[alone]) if alone.any() else 0.25 * max(self.size_mm)
+        region = shapes.make_lump(xy, max(0.7 * reach, 0.6), START_SHARPNESS, max(math.expm1(depth), 1.2 * self.min_contrast))
+        return np.concatenate([theta, region])
 
     def _profile_strained(self, fit: Fit) -> bool:
         """Whether a fit's lump profiles may belong on the other tail branch (shapes.py): it misses its
@@ -249,19 +332,26 @@ class Hypotheses:
         return [[shapes.make_lump(c, 0.85 * r, START_SHARPNESS, a) for c, r, a in lumps]]
 
     def _excess(self, fit: Fit, obs: Observations) -> tuple[np.ndarray, np.ndarray]:
-        """Each exact reading above the fit, in units of its noise at the floor (the fit's own σ_w may
-        have swallowed a lump), and the fit's prediction."""
-        f, _ = shapes.evaluate(fit.family, fit.theta, obs.xy, jacobian=False)
-        total = np.sqrt(obs.sd**2 + self.noise_floor**2)
-        return np.where(obs.kind == EXACT, (obs.y - f) / total, 0.0), f
+        """Each exact reading above the fit, in units of its noise at the floor (0 for a bound), and the
+        fit's prediction."""
+        z, f = self._misses(fit, obs)
+        return np.where(obs.kind == EXACT, z, 0.0), f
 
-    def _unexplained(self, fit: Fit, obs: Observations) -> np.ndarray:
+    def _unexplained(self, fit: Fit, obs: Observations, below: bool = False) -> np.ndarray:
         """The readings above the fit by more than SUPPORT_SIGMA at the noise floor, exact or lower bounds
         ('too stiff'): a lump read only at the force limit is one more lump to try (`none` beside it was
-        left alone, and chosen at weight 1.0 over 91 readings, 6 of them 'at least 5x the tissue')."""
-        f, _ = shapes.evaluate(fit.family, fit.theta, obs.xy, jacobian=False)
-        z = (obs.y - f) / np.sqrt(obs.sd**2 + self.noise_floor**2)
+        left alone, and chosen at weight 1.0 over 91 readings, 6 of them 'at least 5x the tissue').
+        `below`: the exact readings that far below it (a soft region to try)."""
+        z, _ = self._misses(fit, obs)
+        if below:
+            return np.where(obs.kind == EXACT, -z, 0.0) > evidence.SUPPORT_SIGMA
         return np.where(obs.kind >= 0, z, 0.0) > evidence.SUPPORT_SIGMA
+
+    def _misses(self, fit: Fit, obs: Observations) -> tuple[np.ndarray, np.ndarray]:
+        """How far each reading lies above the fit, in sds of its noise at the floor (the fit's own σ_w may have
+        swallowed what it misses), and the fit's prediction."""
+        f, _ = shapes.evaluate(fit.family, fit.theta, obs.xy, jacobian=False)
+        return (obs.y - f) / np.sqrt(obs.sd**2 + self.noise_floor**2), f
 
     def _new_lumps(self, fit: Fit, obs: Observations) -> list[np.ndarray]:
         """A lump at each of the two readings the fit explains worst, reaching most of the way to the

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from palpd.learner import acquisition, coverage, design, lumps as free_form, maps
+from palpd.learner import acquisition, coverage, design, lumps as free_form, maps, shapes
 from palpd.learner.decision import Decision
 from palpd.learner.gp import Hyper, IncrementalGP, fit_hyper
 from palpd.learner.hypotheses import Hypotheses
@@ -204,6 +204,9 @@ class Learner(Decision):
             fit = self.chosen_fit()
             if fit is not None and fit.family.k:
                 self._cache["grid"] = maps.parametric(fit, self.xs, self.ys, self.grid_xy)
+            elif fit is not None and fit.family.soft:  # a lump would rise from the tissue around the soft region
+                tau = shapes.background(fit.theta, self.grid_xy, fit.family.scale_mm) + math.log1p(self.min_contrast)
+                self._cache["grid"] = maps.from_log_field(self.xs, self.ys, self.gp.mean, self.gp.var, tau)
             else:
                 tau = np.log(self.free_form_map().tau).ravel()
                 self._cache["grid"] = maps.from_log_field(self.xs, self.ys, self.gp.mean, self.gp.var, tau)

@@ -6,7 +6,8 @@ side, its edge sharpness log-uniform, its tail shape uniform (from tails that
 end at a finite distance through power-law to Gaussian-like ones), its contrast
 log-uniform from `min_contrast` (the softest difference that counts as a lump)
 to 1000×, an ellipse's log axis ratio up to log 8; the background's level and
-slopes Gaussian (in evidence.py's prior residuals).
+slopes Gaussian (in evidence.py's prior residuals). A soft region (shapes.py) has a circle's
+box: its core softer than the tissue around it as a lump's is stiffer, 1 + `min_contrast` to 1000×.
 """
 from __future__ import annotations
 
@@ -25,6 +26,10 @@ EDGE_SHARPNESS = (2.0, 60.0)
 # says they are: each extra lump a hypothesis holds pays for a profile prior spread over both branches.
 ENDING_TAILS = 0.1
 COMPACT_SHARPNESS_FLOOR = 1.0  # tails that end may rise to a point (a cone: s = 1, c = ½); others stay smooth on top
+# Tissue softer in one place (a cyst, a pocket of fat) is the exception, a stiff region what users palpate for:
+# a hypothesis with a soft region holds these prior odds against its twin without one (the half-stiff map's
+# first 13 readings gave a soft disc over its soft half 7 % at even odds, beside the stiff half's free-form map).
+SOFT_REGION_ODDS = 0.1
 MAX_CONTRAST = 999.0
 MIN_RADIUS_MM = 0.5
 CENTRE_MARGIN = 0.0  # a lump is centred on the tissue (one centred off it could never be felt from inside)
@@ -43,7 +48,7 @@ class Priors:
         return 0.5 * max(self.size_mm)
 
     def bounds(self, family: shapes.Family) -> tuple[np.ndarray, np.ndarray]:
-        return _bounds(self.size_mm, self.min_contrast, family.kind, family.k)
+        return _bounds(self.size_mm, self.min_contrast, family.kind, family.k, family.soft)
 
     def branch_bounds(self, family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The box a fit from `theta` (d, or S × d) searches: each lump's tail shape kept on the side of
@@ -51,11 +56,11 @@ class Priors:
         sign (each thins the tails), so a step across is a kink the solver would stall on; a fit from
         each side competes by evidence instead (shapes.py)."""
         theta = np.asarray(theta, dtype=float)
-        tails = theta[..., [family.lump_slice(j).stop - 3 for j in range(family.k)]] < 0.0  # [.., λ, log s, log a]
+        tails = theta[..., [part.stop - 3 for part in family.profile_slices()]] < 0.0  # [.., λ, log s, log a|d]
+        key = (self.size_mm, self.min_contrast, family.kind, family.k, family.soft)
         if theta.ndim == 1:
-            return _branch_bounds(self.size_mm, self.min_contrast, family.kind, family.k, tuple(tails.tolist()))
-        boxes = [_branch_bounds(self.size_mm, self.min_contrast, family.kind, family.k, tuple(row))
-                 for row in tails.tolist()]
+            return _branch_bounds(*key, tuple(tails.tolist()))
+        boxes = [_branch_bounds(*key, tuple(row)) for row in tails.tolist()]
         return np.array([lo for lo, _ in boxes]), np.array([hi for _, hi in boxes])
 
     def _lump_box(self, ellipse: bool) -> list[tuple[float, float]]:
@@ -72,14 +77,15 @@ class Priors:
     def log_density(self, family: shapes.Family, theta: np.ndarray) -> float:
         """log p(θ) of the uniform lump boxes (the background's Gaussian prior is in its residuals); a lump's
         tail shape and sharpness uniform within their branch, which is one with tails that end with
-        probability ENDING_TAILS."""
+        probability ENDING_TAILS; a soft region's prior odds SOFT_REGION_ODDS."""
         lo, hi = self.bounds(family)
         box = np.isfinite(lo)
         log_p = 0.0
-        for j in range(family.k):
-            tail = family.lump_slice(j).stop - 3
+        for part in family.profile_slices():
+            tail = part.stop - 3
             box[tail:tail + 2] = False
             log_p += _log_profile_density(float(theta[tail]))
+        log_p += family.soft * math.log(SOFT_REGION_ODDS)
         return float(log_p - np.sum(np.log(hi[box] - lo[box])))
 
     def precision(self, family: shapes.Family, theta: np.ndarray) -> np.ndarray:
@@ -114,13 +120,13 @@ def _log_profile_density(tail: float) -> float:
 
 
 @lru_cache(maxsize=256)
-def _branch_bounds(size_mm, min_contrast, kind, k, compact: tuple) -> tuple[np.ndarray, np.ndarray]:
-    """`Priors.branch_bounds` for one parameter vector, its lumps' branches given (cached as `_bounds`: every
-    fit, Kalman step and evidence asks for it)."""
-    lo, hi = (array.copy() for array in _bounds(size_mm, min_contrast, kind, k))
-    family = shapes.Family(kind, k, 1.0)
-    for j, ending in enumerate(compact):
-        tail = family.lump_slice(j).stop - 3
+def _branch_bounds(size_mm, min_contrast, kind, k, soft, compact: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """`Priors.branch_bounds` for one parameter vector, its profiles' branches given (cached as `_bounds`:
+    every fit, Kalman step and evidence asks for it)."""
+    lo, hi = (array.copy() for array in _bounds(size_mm, min_contrast, kind, k, soft))
+    family = shapes.Family(kind, k, 1.0, soft)
+    for part, ending in zip(family.profile_slices(), compact):
+        tail = part.stop - 3
         (lo[tail], hi[tail]), (lo[tail + 1], hi[tail + 1]) = profile_branch(-1.0 if ending else 0.0)
     for array in (lo, hi):
         array.flags.writeable = False
@@ -128,12 +134,12 @@ def _branch_bounds(size_mm, min_contrast, kind, k, compact: tuple) -> tuple[np.n
 
 
 @lru_cache(maxsize=64)
-def _bounds(size_mm, min_contrast, kind, k) -> tuple[np.ndarray, np.ndarray]:
+def _bounds(size_mm, min_contrast, kind, k, soft) -> tuple[np.ndarray, np.ndarray]:
     """The parameter box of a family (cached: every refit and Kalman step asks for it)."""
     priors = Priors(size_mm, min_contrast, 0.0)
     lo, hi = [-np.inf] * 3, [np.inf] * 3
-    for _ in range(k):
-        low, high = zip(*priors._lump_box(kind == "ellipses"))
+    for box in [priors._lump_box(kind == "ellipses")] * k + [priors._lump_box(False)] * soft:
+        low, high = zip(*box)
         lo += low
         hi += high
     out = np.array(lo), np.array(hi)

@@ -23,7 +23,15 @@ Where lumps come close the stiffer one is felt (the max). Working in log
 stiffness keeps readings comparable from 0.005 to 50 N/mm and turns a relative
 error into a constant one.
 
-Parameters are [β0, βx, βy] then per lump [cx, cy, log R, (e1, e2,) λ, log s, log a].
+A soft region (a cyst, fat: tissue softer than around it, no lump) is a lump
+drawn the other way: the background times (1 − b·p(x)), b = a/(1 + a), so its
+core is 1 + a times softer than the tissue around and p = ½ is again halfway in
+stiffness. `none+soft:1` is no lump on a background with one soft region, which
+a flat or sloping background alone misses and lumps could only mimic by standing
+for the tissue around it.
+
+Parameters are [β0, βx, βy] then per lump [cx, cy, log R, (e1, e2,) λ, log s, log a], then a soft region's,
+laid out as a circle's.
 """
 from __future__ import annotations
 
@@ -35,16 +43,19 @@ import numpy as np
 BACKGROUND_PARAMS = 3
 CIRCLE_PARAMS = 6
 ELLIPSE_PARAMS = 8
+SOFT_PARAMS = CIRCLE_PARAMS  # a soft region is a disc lump drawn the other way
 TAIL_RANGE = (-1.2, 1.5)  # λ: to c = 0.6 (ending at ρ^s = 1.67) on one side, to Gaussian-like tails on the other
 TINY = 1e-12
 
 
 @dataclass(frozen=True)
 class Family:
-    """Which lumps, how many: `circles` or `ellipses`, k of them, on a tissue of half-size L (mm)."""
+    """Which lumps, how many: `circles` or `ellipses`, k of them, on a tissue of half-size L (mm), and
+    whether the background has a soft region (`soft`: 0 or 1)."""
     kind: str
     k: int
     scale_mm: float
+    soft: int = 0
 
     @property
     def per_lump(self) -> int:
@@ -52,17 +63,26 @@ class Family:
 
     @property
     def size(self) -> int:
-        return BACKGROUND_PARAMS + self.k * self.per_lump
+        return BACKGROUND_PARAMS + self.k * self.per_lump + self.soft * SOFT_PARAMS
 
     def lump_slice(self, j: int) -> slice:
         start = BACKGROUND_PARAMS + j * self.per_lump
         return slice(start, start + self.per_lump)
 
     @property
+    def soft_slice(self) -> slice:
+        """The soft region's parameters (empty without one)."""
+        start = BACKGROUND_PARAMS + self.k * self.per_lump
+        return slice(start, start + self.soft * SOFT_PARAMS)
+
+    def profile_slices(self) -> list[slice]:
+        """Each lump's parameters, then the soft region's: every part with a profile [.., λ, log s, log a]."""
+        return [self.lump_slice(j) for j in range(self.k)] + ([self.soft_slice] if self.soft else [])
+
+    @property
     def name(self) -> str:
-        if self.k == 0:
-            return "none"
-        return f"{'ellipse' if self.kind == 'ellipses' else 'circles'}:{self.k}"
+        lumps = "none" if self.k == 0 else f"{'ellipse' if self.kind == 'ellipses' else 'circles'}:{self.k}"
+        return f"{lumps}+soft:{self.soft}" if self.soft else lumps
 
 
 def background(theta: np.ndarray, xy: np.ndarray, scale_mm: float) -> np.ndarray:
@@ -203,7 +223,7 @@ def make_lump(center, radius_mm: float, sharpness: float, contrast: float, stret
 
 def lumps_of(family: Family, theta: np.ndarray) -> np.ndarray:
     """The lumps' parameters as a (k × per-lump) array."""
-    return theta[BACKGROUND_PARAMS:].reshape(family.k, family.per_lump)
+    return theta[BACKGROUND_PARAMS:family.soft_slice.start].reshape(family.k, family.per_lump)
 
 
 def evaluate(family: Family, theta: np.ndarray, xy: np.ndarray, jacobian: bool = True):
@@ -218,9 +238,18 @@ def evaluate_many(family: Family, thetas: np.ndarray, xy: np.ndarray, jacobian: 
     on a few dozen readings a call's overhead, not its arithmetic, is the cost."""
     count, n = len(thetas), len(xy)
     base = background(thetas, xy, family.scale_mm)
+    if family.soft:
+        lowered, dip_jac = _soft(thetas[:, family.soft_slice], xy, jacobian)
+        base = base - lowered
     if family.k == 0:
-        return base, (np.repeat(_background_jac(xy, family.scale_mm)[None], count, axis=0) if jacobian else None)
-    lumps = thetas[:, BACKGROUND_PARAMS:].reshape(count * family.k, family.per_lump)
+        if not jacobian:
+            return base, None
+        out = np.zeros((count, n, family.size))
+        out[:, :, :BACKGROUND_PARAMS] = _background_jac(xy, family.scale_mm)
+        if family.soft:
+            out[:, :, family.soft_slice] = -dip_jac
+        return base, out
+    lumps = thetas[:, BACKGROUND_PARAMS:family.soft_slice.start].reshape(count * family.k, family.per_lump)
     heights, jacs = _heights(lumps, xy, family.kind == "ellipses", jacobian)
     heights = heights.reshape(n, count, family.k)
     if family.k == 1:  # one lump, felt everywhere (the common case, without the search for the top one)
@@ -233,11 +262,14 @@ def evaluate_many(family: Family, thetas: np.ndarray, xy: np.ndarray, jacobian: 
         return f, None
     out = np.zeros((count, n, family.size))  # the background's columns, then each lump's (only the top one's set)
     out[:, :, :BACKGROUND_PARAMS] = _background_jac(xy, family.scale_mm)
+    if family.soft:
+        out[:, :, family.soft_slice] = -dip_jac
+    lump_columns = slice(BACKGROUND_PARAMS, family.soft_slice.start)
     jacs = jacs.reshape(n, count, family.k, family.per_lump) / (1.0 + m[:, :, None, None])
     if top is None:
-        out[:, :, BACKGROUND_PARAMS:] = jacs[:, :, 0].transpose(1, 0, 2)
+        out[:, :, lump_columns] = jacs[:, :, 0].transpose(1, 0, 2)
         return f, out
-    per_lump = out[:, :, BACKGROUND_PARAMS:].reshape(count, n, family.k, family.per_lump)  # a view: splits one axis
+    per_lump = out[:, :, lump_columns].reshape(count, n, family.k, family.per_lump)  # a view: splits one axis
     rows, starts = np.arange(n)[:, None], np.arange(count)[None, :]
     per_lump[starts, rows, top] = jacs[rows, starts, top]
     return f, out
@@ -248,6 +280,27 @@ def heights_of(family: Family, theta: np.ndarray, xy: np.ndarray) -> np.ndarray:
     if family.k == 0:
         return np.zeros((len(xy), 0))
     return _heights(lumps_of(family, theta), xy, family.kind == "ellipses", False)[0]
+
+
+def soft_dip(family: Family, theta: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """How far the soft region lowers the log stiffness at each point (zeros without one)."""
+    if not family.soft:
+        return np.zeros(len(xy))
+    return _soft(theta[None, family.soft_slice], xy, False)[0][0]
+
+
+def _soft(regions: np.ndarray, xy: np.ndarray, jacobian: bool):
+    """−log(1 − b·p) of one soft region per row of `regions` (S × its params) at each point: S × n, and its
+    derivatives S × n × params (None when not asked for). With h = a·p: log(1 + a) − log(1 + a − h)."""
+    h, jac = _heights(regions, xy, False, jacobian)  # n × S, n × S × params (its last column: a·p = h)
+    a = np.exp(regions[:, -1])
+    rest = 1.0 + a[None, :] - h
+    lowered = (np.log1p(a)[None, :] - np.log(rest)).T
+    if not jacobian:
+        return lowered, None
+    d = jac / rest[:, :, None]  # d(−log rest) w.r.t. the profile's parameters
+    d[:, :, -1] = a[None, :] / (1.0 + a[None, :]) - (a[None, :] - h) / rest
+    return lowered, d.transpose(1, 0, 2)
 
 
 def _background_jac(xy: np.ndarray, scale_mm: float) -> np.ndarray:

@@ -101,6 +101,15 @@ function drawLumps(f) {
     ctx.moveTo(f.px(cx), f.py(cy) - 6); ctx.lineTo(f.px(cx), f.py(cy) + 6); ctx.stroke();
   }
   canvas.dataset.lumps = String(lumps.length);
+  // tissue softer there (model none+soft:1 or circles:K+soft:1): no lump, dashed as the plot draws it
+  const softs = (view.estimate && view.estimate.model && view.estimate.model.soft_regions) || [];
+  ctx.strokeStyle = "#1f77b4"; ctx.lineWidth = 1.5; ctx.setLineDash([6, 4]);
+  for (const soft of softs) {
+    ctx.beginPath();
+    soft.boundary_mm.forEach(([x, y], i) => (i ? ctx.lineTo(f.px(x), f.py(y)) : ctx.moveTo(f.px(x), f.py(y))));
+    ctx.closePath(); ctx.stroke();
+  }
+  ctx.setLineDash([]);
 }
 
 function drawProbes(f, kScale) {
@@ -175,7 +184,9 @@ function panel() {
   text("undecided", m && m.undecided ? `not yet: ${m.undecided}` : "");
   list("lumps", ((e && e.lumps) || []).map((l, i) =>
     `lump ${i + 1}: centre (${l.center_mm[0].toFixed(1)}, ${l.center_mm[1].toFixed(1)}) ± ${l.center_sd_mm.toFixed(2)} mm, ` +
-    `radius ${l.radius_mm.toFixed(1)} ± ${l.radius_sd_mm.toFixed(2)} mm`), e && e.points ? "no lump" : "none yet");
+    `radius ${l.radius_mm.toFixed(1)} ± ${l.radius_sd_mm.toFixed(2)} mm`).concat(((m && m.soft_regions) || []).map((r) =>
+    `no lump: tissue ${r.softer}× softer around (${r.center_mm[0].toFixed(1)}, ${r.center_mm[1].toFixed(1)}), ` +
+    `radius ${r.radius_mm.toFixed(1)} mm`)), e && e.points ? "no lump" : "none yet");
   list("faults", view.faults.map((x) => `${x.code}: ${x.message}`), "none");
   text("updated", new Date().toLocaleTimeString());
 }
