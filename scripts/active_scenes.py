@@ -3,6 +3,7 @@
     .venv/bin/python scripts/active_scenes.py [--seed N | --seeds 0,1,2] [--raster-too] [SCENE ...]
     .venv/bin/python scripts/active_scenes.py --random N [--random-seed S] [--raster-too]
     .venv/bin/python scripts/active_scenes.py --varied N [--random-seed S] [--raster-too]
+    .venv/bin/python scripts/active_scenes.py --soft N [--random-seed S] [--raster-too]
     add --config FILE (TOML) to any of them for other settings, e.g. [learner] coverage_mm = 11
 
 
@@ -17,6 +18,7 @@ three lumps that do not touch, of any radius, depth and contrast in the ranges b
 the same table and one summary row, so that what the learner decides is tried beyond the scenes it was
 developed on. --varied N draws from a wider range still (varied_scenes: tissues not square, hardening,
 damped, with friction, turned on the bench, lumps partly past the tissue's edge, some scenes with none).
+--soft N draws scenes with a soft inclusion (soft_scenes: a cyst, no lump) and none to two lumps beside it.
 """
 from __future__ import annotations
 
@@ -85,6 +87,8 @@ def main() -> int:
     parser.add_argument("--random", type=int, default=0, metavar="N", help="N random scenes instead of the shipped ones")
     parser.add_argument("--varied", type=int, default=0, metavar="N",
                         help="N random scenes of the wider range (varied_scenes) instead of the shipped ones")
+    parser.add_argument("--soft", type=int, default=0, metavar="N",
+                        help="N random scenes with a soft inclusion (soft_scenes) instead of the shipped ones")
     parser.add_argument("--random-seed", type=int, default=0)
     parser.add_argument("--config", default=None, metavar="FILE", help="settings (TOML) instead of the defaults")
     args = parser.parse_args()
@@ -98,6 +102,8 @@ def main() -> int:
         return tried_beyond(random_scenes(args.random, args.random_seed), args.raster_too)
     if args.varied:
         return tried_beyond(varied_scenes(args.varied, args.random_seed), args.raster_too)
+    if args.soft:
+        return tried_beyond(soft_scenes(args.soft, args.random_seed), args.raster_too)
     names = args.scenes or sorted(p.stem for p in SCENES.glob("*.toml"))
     if args.seeds:
         return sweep(names, [int(s) for s in args.seeds.split(",")])
@@ -137,17 +143,27 @@ def random_scenes(count: int, seed: int) -> list[Scene]:
         tissue_k = math.exp(rng.uniform(math.log(0.05), math.log(0.4)))
         lumps: list[dict] = []
         for _ in range(rng.choices([1, 2, 3], [0.5, 0.3, 0.2])[0]):
-            for _attempt in range(100):
-                radius = rng.uniform(3.0, 12.0)
-                centre = [rng.uniform(-size / 2 + radius, size / 2 - radius) for _ in range(2)]
-                if all(math.dist(centre, other["center_mm"]) > radius + other["radius_mm"] + 6.0 for other in lumps):
-                    lumps.append({"center_mm": centre, "radius_mm": radius, "depth_mm": rng.uniform(1.0, 8.0),
-                                  "stiffness_n_per_mm": tissue_k * rng.uniform(2.5, 8.0)})
-                    break
-        scenes.append(Scene(name=f"random-{seed}-{i}", seed=seed * 1000 + i,
-                            tissue={"size_mm": [size, size], "stiffness_n_per_mm": tissue_k}, lump=lumps,
-                            sensor={"noise_n": rng.choice([0.005, 0.01, 0.03, 0.06]), "tilt": True}))
+            _add_lump(rng, size, tissue_k, lumps)
+        scenes.append(_square_scene(rng, f"random-{seed}-{i}", seed * 1000 + i, size, tissue_k, lumps))
     return scenes
+
+
+def _square_scene(rng: random.Random, name: str, seed: int, size: float, tissue_k: float, lumps: list[dict]) -> Scene:
+    """A square tissue of `size` with the lumps, its sensor noise drawn from 0.005-0.06 N."""
+    return Scene(name=name, seed=seed, tissue={"size_mm": [size, size], "stiffness_n_per_mm": tissue_k}, lump=lumps,
+                 sensor={"noise_n": rng.choice([0.005, 0.01, 0.03, 0.06]), "tilt": True})
+
+
+def _add_lump(rng: random.Random, size: float, tissue_k: float, lumps: list[dict]) -> None:
+    """One lump 3-12 mm in radius, 1-8 mm deep, 2.5-8 times as stiff, wholly on a square tissue of `size` and
+    at least 6 mm from the others edge to edge (up to 100 draws; none if no draw fits)."""
+    for _attempt in range(100):
+        radius = rng.uniform(3.0, 12.0)
+        centre = [rng.uniform(-size / 2 + radius, size / 2 - radius) for _ in range(2)]
+        if all(math.dist(centre, other["center_mm"]) > radius + other["radius_mm"] + 6.0 for other in lumps):
+            lumps.append({"center_mm": centre, "radius_mm": radius, "depth_mm": rng.uniform(1.0, 8.0),
+                          "stiffness_n_per_mm": tissue_k * rng.uniform(2.5, 8.0)})
+            return
 
 
 def varied_scenes(count: int, seed: int) -> list[Scene]:
@@ -176,6 +192,26 @@ def varied_scenes(count: int, seed: int) -> list[Scene]:
         scenes.append(Scene(name=f"varied-{seed}-{i}", seed=seed * 1000 + i, tissue=tissue, lump=lumps,
                             placement={"rotation_deg": rng.choice([0.0, 0.0, 15.0, 30.0])},
                             sensor={"noise_n": rng.choice([0.001, 0.005, 0.01, 0.03, 0.06]), "tilt": True}))
+    return scenes
+
+
+def soft_scenes(count: int, seed: int) -> list[Scene]:
+    """Scenes with one soft inclusion (a cyst, a pocket of fat: no lump to find, metrics.scene_truth): tissue
+    50-80 mm across and 0.05-0.4 N/mm, the inclusion 5-15 mm in radius, 0-3 mm deep, 1.5-5 times softer and
+    wholly on the tissue; none to two lumps beside it as random_scenes draws them, at least 6 mm from it and
+    from each other edge to edge; sensor noise 0.005-0.06 N."""
+    rng = random.Random(seed + 9000)
+    scenes = []
+    for i in range(count):
+        size = rng.choice([50.0, 60.0, 80.0])
+        tissue_k = math.exp(rng.uniform(math.log(0.05), math.log(0.4)))
+        radius = rng.uniform(5.0, 15.0)
+        soft = {"center_mm": [rng.uniform(-size / 2 + radius, size / 2 - radius) for _ in range(2)],
+                "radius_mm": radius, "depth_mm": rng.uniform(0.0, 3.0), "stiffness_n_per_mm": tissue_k / rng.uniform(1.5, 5.0)}
+        lumps: list[dict] = [soft]
+        for _ in range(rng.choices([0, 1, 2], [0.4, 0.4, 0.2])[0]):
+            _add_lump(rng, size, tissue_k, lumps)
+        scenes.append(_square_scene(rng, f"soft-{seed}-{i}", seed * 1000 + i, size, tissue_k, lumps))
     return scenes
 
 
