@@ -134,14 +134,16 @@ class Hypotheses:
         # tissue softer in one place: tried while the likeliest count of lumps apart leaves readings unexplained
         # below it, or a soft region was in the running (five circles tiling the tissue around a soft disc beside a
         # lump explain every reading, but are no count of lumps: `apart`), with one lump more while the last
-        # leaves a reading unexplained above it
+        # leaves a reading unexplained above it (two lumps beside a soft disc: circles:2 explained the readings no
+        # better than circles:1, and a count stopped there left circles:2+soft:1 untried)
         if self._soft_wanted(best_k, obs):
             fewer = None
-            for k in range(0, best_k + 1):
+            for k in range(0, MAX_LUMPS + 1):  # past the count without one: lumps beside a soft region misfit alike
                 base = self.fits.get(self._name_of(k))
-                if base is None:
+                if base is None and fewer is None:
                     break
-                fit = self._soft_fit(base, fewer, obs, priors, max_starts, thorough)
+                fit = self._soft_fit(shapes.Family("circles", k, priors.scale_mm, soft=1), base, fewer, obs, priors,
+                                     max_starts, thorough)
                 if fit is None:
                     break
                 self.fits[fit.name] = fit
@@ -226,13 +228,13 @@ class Hypotheses:
         below = float(np.max(np.where(obs.kind == EXACT, -z, 0.0)))
         return below > evidence.SUPPORT_SIGMA and below > float(np.max(np.where(obs.kind >= 0, z, 0.0)))
 
-    def _soft_fit(self, base: Fit, fewer: Fit | None, obs: Observations, priors: Priors, max_starts: int | None,
-                  thorough: bool) -> Fit | None:
-        """`base` (none or k circles) on a background with a soft region (shapes.py); `fewer`, the soft fit of
-        one lump fewer, plus a lump at each reading it explains worst from above, starts it too."""
-        family = replace(base.family, soft=1)
+    def _soft_fit(self, family: shapes.Family, base: Fit | None, fewer: Fit | None, obs: Observations,
+                  priors: Priors, max_starts: int | None, thorough: bool) -> Fit | None:
+        """k circles on a background with a soft region (shapes.py), from `base` (the fit of k circles, if any)
+        with a soft region added, and from `fewer` (the soft fit of one lump fewer) with a lump at each reading
+        it explains worst from above."""
         def starts():
-            out = self._soft_starts(base, obs)
+            out = self._soft_starts(base, obs) if base is not None else []
             if fewer is not None:
                 cut = fewer.family.soft_slice
                 out += [np.concatenate([fewer.theta[:cut.start], lump, fewer.theta[cut]])
