@@ -79,9 +79,36 @@ def prior_residuals(family: shapes.Family, theta: np.ndarray, priors: Priors) ->
         parts.append(_overlaps(family, theta))
     if family.soft:
         parts.append(_soft_off_tissue(family, theta, priors))
+        if family.k:
+            parts.append(_soft_beside_lumps(family, theta))
     if len(parts) == 1:
         return values, rows
     return np.concatenate([v for v, _ in parts], axis=-1), np.concatenate([r for _, r in parts], axis=-2)
+
+
+def _soft_beside_lumps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How far the soft region's centre sits inside half its and each lump's summed radii (0 when apart), in
+    OVERLAP_MM: the lumps-apart rule between a lump and the soft region. Tissue softer inside a lump is no
+    soft region beside one (a stiff ring was one disc with a soft region in its middle: `lumps`, where no
+    model on offer draws a ring and the scan is to say so)."""
+    lead = theta.shape[:-1]
+    soft = family.soft_slice.start
+    starts = [family.lump_slice(j).start for j in range(family.k)]
+    dx = theta[..., starts] - theta[..., soft:soft + 1]
+    dy = theta[..., [i + 1 for i in starts]] - theta[..., soft + 1:soft + 2]
+    d = np.hypot(dx, dy) + 1e-9
+    r_lump, r_soft = np.exp(theta[..., [i + 2 for i in starts]]), np.exp(theta[..., soft + 2:soft + 3])
+    excess = 0.5 * (r_lump + r_soft) - d
+    inside = excess > 0
+    rows = np.zeros(lead + (family.k, family.size))
+    for j, i in enumerate(starts):
+        rows[..., j, i] = -dx[..., j] / d[..., j]
+        rows[..., j, i + 1] = -dy[..., j] / d[..., j]
+        rows[..., j, i + 2] = 0.5 * r_lump[..., j]
+        rows[..., j, soft] = dx[..., j] / d[..., j]
+        rows[..., j, soft + 1] = dy[..., j] / d[..., j]
+        rows[..., j, soft + 2] = 0.5 * r_soft[..., 0]
+    return np.where(inside, excess, 0.0) / OVERLAP_MM, rows * inside[..., None] / OVERLAP_MM
 
 
 def _soft_off_tissue(family: shapes.Family, theta: np.ndarray, priors: Priors) -> tuple[np.ndarray, np.ndarray]:
