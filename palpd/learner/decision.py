@@ -42,7 +42,8 @@ class Decision:
         return None if self.choice is None else self.hypotheses.checked(self.choice.chosen, self.obs)
 
     def model(self) -> dict | None:
-        """{chosen, weight, runner_up, unfelt_radius_mm, undecided} of the scan report and the estimate event."""
+        """{chosen, weight, runner_up, unfelt_radius_mm, undecided} of the scan report and the estimate event,
+        and soft_regions when the chosen model has one."""
         if self.choice is None:
             return None
         soft = describe.soft_regions_of(self.chosen_fit())

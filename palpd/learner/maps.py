@@ -4,7 +4,8 @@ The map is the chosen hypothesis's: for a parametric model its prediction, the
 linearised sd and, per cell, the probability of lying inside a lump's 50 %
 boundary (ρ < 1 with log ρ² normal under the Laplace posterior); for the
 free-form model (and for `none`, against the softest contrast that would count
-as a lump) the GP's mean, sd and Φ((μ − log τ)/σ).
+as a lump; for `none+soft:1`, that contrast over the fitted tissue around the soft
+region) the GP's mean, sd and Φ((μ − log τ)/σ).
 """
 from __future__ import annotations
 
