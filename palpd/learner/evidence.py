@@ -87,28 +87,11 @@ def prior_residuals(family: shapes.Family, theta: np.ndarray, priors: Priors) ->
 
 
 def _soft_beside_lumps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """How far the soft region's centre sits inside half its and each lump's summed radii (0 when apart), in
-    OVERLAP_MM: the lumps-apart rule between a lump and the soft region. Tissue softer inside a lump is no
-    soft region beside one (a stiff ring was one disc with a soft region in its middle: `lumps`, where no
-    model on offer draws a ring and the scan is to say so)."""
-    lead = theta.shape[:-1]
+    """The lumps-apart rule between each lump and the soft region: tissue softer inside a lump is no soft region
+    beside one (a stiff ring was one disc with a soft region in its middle: `lumps`, where no model on offer
+    draws a ring and the scan is to say so)."""
     soft = family.soft_slice.start
-    starts = [family.lump_slice(j).start for j in range(family.k)]
-    dx = theta[..., starts] - theta[..., soft:soft + 1]
-    dy = theta[..., [i + 1 for i in starts]] - theta[..., soft + 1:soft + 2]
-    d = np.hypot(dx, dy) + 1e-9
-    r_lump, r_soft = np.exp(theta[..., [i + 2 for i in starts]]), np.exp(theta[..., soft + 2:soft + 3])
-    excess = 0.5 * (r_lump + r_soft) - d
-    inside = excess > 0
-    rows = np.zeros(lead + (family.k, family.size))
-    for j, i in enumerate(starts):
-        rows[..., j, i] = -dx[..., j] / d[..., j]
-        rows[..., j, i + 1] = -dy[..., j] / d[..., j]
-        rows[..., j, i + 2] = 0.5 * r_lump[..., j]
-        rows[..., j, soft] = dx[..., j] / d[..., j]
-        rows[..., j, soft + 1] = dy[..., j] / d[..., j]
-        rows[..., j, soft + 2] = 0.5 * r_soft[..., 0]
-    return np.where(inside, excess, 0.0) / OVERLAP_MM, rows * inside[..., None] / OVERLAP_MM
+    return _discs_apart(family, theta, [family.lump_slice(j).start for j in range(family.k)], [soft] * family.k)
 
 
 def _soft_off_tissue(family: shapes.Family, theta: np.ndarray, priors: Priors) -> tuple[np.ndarray, np.ndarray]:
@@ -131,24 +114,29 @@ def _soft_off_tissue(family: shapes.Family, theta: np.ndarray, priors: Priors) -
 
 def _overlaps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """How far each pair of lumps' centres sit inside half their summed radii (0 when apart), in OVERLAP_MM."""
-    lead = theta.shape[:-1]
-    lumps = theta[..., BACKGROUND:family.soft_slice.start].reshape(lead + (family.k, family.per_lump))
     j, m = _pairs(family.k)
-    dx, dy = lumps[..., j, 0] - lumps[..., m, 0], lumps[..., j, 1] - lumps[..., m, 1]
+    starts = np.array([family.lump_slice(i).start for i in range(family.k)], dtype=int)
+    return _discs_apart(family, theta, starts[j], starts[m])
+
+
+def _discs_apart(family: shapes.Family, theta: np.ndarray, first, second) -> tuple[np.ndarray, np.ndarray]:
+    """For each pair of discs (the offsets in θ of their [cx, cy, log R]), how far their centres sit inside half
+    their summed radii (0 when apart), in OVERLAP_MM, and its Jacobian (S parameter vectors at once too)."""
+    first, second = np.asarray(first, dtype=int), np.asarray(second, dtype=int)
+    lead, pairs = theta.shape[:-1], len(first)
+    dx, dy = theta[..., first] - theta[..., second], theta[..., first + 1] - theta[..., second + 1]
     d = np.hypot(dx, dy) + 1e-9
-    ra, rb = np.exp(lumps[..., j, 2]), np.exp(lumps[..., m, 2])
+    ra, rb = np.exp(theta[..., first + 2]), np.exp(theta[..., second + 2])
     excess = 0.5 * (ra + rb) - d
     inside = excess > 0
-    if not inside.any():  # lumps apart, as nearly always: nothing to push (every fit step comes here)
-        return np.zeros(lead + (len(j),)), np.zeros(lead + (len(j), family.size))
-    rows = np.zeros(lead + (len(j), family.k, family.per_lump))
-    pair = np.arange(len(j))
-    for index, radius, sign in ((j, ra, 1.0), (m, rb, -1.0)):
-        rows[..., pair, index, 0] = -sign * dx / d
-        rows[..., pair, index, 1] = -sign * dy / d
-        rows[..., pair, index, 2] = 0.5 * radius
-    soft = np.zeros(lead + (len(j), family.soft_slice.stop - family.soft_slice.start))
-    rows = np.concatenate([np.zeros(lead + (len(j), BACKGROUND)), rows.reshape(lead + (len(j), -1)), soft], axis=-1)
+    if not inside.any():  # discs apart, as nearly always: nothing to push (every fit step comes here)
+        return np.zeros(lead + (pairs,)), np.zeros(lead + (pairs, family.size))
+    rows = np.zeros(lead + (pairs, family.size))
+    pair = np.arange(pairs)
+    for start, radius, sign in ((first, ra, 1.0), (second, rb, -1.0)):
+        rows[..., pair, start] = -sign * dx / d
+        rows[..., pair, start + 1] = -sign * dy / d
+        rows[..., pair, start + 2] = 0.5 * radius
     return np.where(inside, excess, 0.0) / OVERLAP_MM, rows * inside[..., None] / OVERLAP_MM
 
 
