@@ -74,6 +74,10 @@ def test_bad_map_names_file_and_line(tmp_path):
     (b"\x89PNG\r\n\x1a\n\x00\xff\xfe binary", r"m\.csv: not a CSV text file"),
     (b"x_mm,y_mm,stiffness_n_per_mm\n0,0,0.1\n1,1,0.1\n2,2,0.2\n3,3,0.1\n", r"m\.csv: the map's points lie on one line"),
     (b"x_mm,y_mm,stiffness_n_per_mm\n5,5,0.1\n5,5,0.2\n5,5,0.1\n5,5,0.1\n", r"m\.csv: the map's points lie on one line"),
+    (b"x_mm;y_mm;stiffness_n_per_mm\n0;0;0.1\n", r"m\.csv: missing column\(s\) stiffness_n_per_mm, x_mm, y_mm \(its first "
+     r"line reads 'x_mm;y_mm;stiffness_n_per_mm'; the map is comma-separated"),
+    (b"0,0,0.1\n1,0,0.1\n", r"m\.csv: missing column\(s\) .*\(its first line reads '0,0,0\.1'"),
+    (b"", r"m\.csv: missing column\(s\) .*\(it is empty; "),
 ])
 def test_a_map_that_cannot_be_interpolated_is_one_clear_line_before_the_bench_opens(tmp_path, content, message):
     """Before, a binary file was a traceback and points on a line a multi-line Qhull error from the bench."""

@@ -111,7 +111,11 @@ def load_stiffness_map(path: str | Path) -> list[tuple[float, float, float]]:
             reader.fieldnames = [name.strip() for name in reader.fieldnames or []]
             missing = {"x_mm", "y_mm", "stiffness_n_per_mm"} - set(reader.fieldnames or [])
             if missing:
-                raise SceneError(f"{path}: missing column(s) {', '.join(sorted(missing))}")
+                # what the first line holds instead: a semicolon export, numbers with no header, nothing at all
+                header = ",".join(reader.fieldnames)[:60]
+                found = f"its first line reads {header!r}" if reader.fieldnames else "it is empty"
+                raise SceneError(f"{path}: missing column(s) {', '.join(sorted(missing))} ({found}; the map is "
+                                 f"comma-separated with the header x_mm,y_mm,stiffness_n_per_mm)")
             rows = [_map_row(path, n + 2, row) for n, row in enumerate(reader)]
     except OSError as exc:
         raise SceneError(f"{path}: cannot read stiffness map: {exc.strerror}") from None
