@@ -83,6 +83,22 @@ def estimate_lumps(xy_mm, k, min_contrast: float = 0.3) -> list[LumpEstimate]:
     ]
 
 
+def unfelt_radius_mm(xy_mm, size_mm, step_mm: float = 0.5) -> float:
+    """The farthest any spot of the tissue (on a step_mm lattice, edges included) lies from a reading: a lump
+    whose disc holds no reading may be felt by none, so "no lump" rules out only lumps wider than this."""
+    readings = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+    if not len(readings):
+        return math.inf
+    xs = np.linspace(-size_mm[0] / 2, size_mm[0] / 2, max(2, round(size_mm[0] / step_mm) + 1))
+    ys = np.linspace(-size_mm[1] / 2, size_mm[1] / 2, max(2, round(size_mm[1] / step_mm) + 1))
+    gx, gy = np.meshgrid(xs, ys)
+    spots = np.column_stack([gx.ravel(), gy.ravel()])
+    distance = np.full(len(spots), np.inf)
+    for x, y in readings:  # a few hundred readings at most: no tree needed
+        np.minimum(distance, np.hypot(spots[:, 0] - x, spots[:, 1] - y), out=distance)
+    return float(distance.max())
+
+
 def circle_polygon(center: tuple[float, float], radius: float, vertices: int = BOUNDARY_VERTICES) -> list[list[float]]:
     """A closed polygon (first vertex repeated last) approximating a circle."""
     angles = np.linspace(0.0, 2.0 * math.pi, vertices + 1)

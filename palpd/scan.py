@@ -13,7 +13,7 @@ from palpd.control.palpation import Palpation, PalpationRecord
 from palpd.probe import MIN_SLOPE_DEPTH_MM, Probe, judge
 from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.errors import ScanFault, UsageError
-from palpd.estimate import estimate_lumps
+from palpd.estimate import estimate_lumps, unfelt_radius_mm
 from palpd.stiffness import load_solvers
 
 # A press stopped by the force limit whose stiffness is less certain than this (relative sd) is repeated gently
@@ -30,8 +30,9 @@ class FixedPlan:
     and learn from observe(probe); an adaptive planner (the learner) does the same.
     """
 
-    def __init__(self, points: list[tuple[float, float]]) -> None:
+    def __init__(self, points: list[tuple[float, float]], size_mm=None) -> None:
         self.points = list(points)
+        self.size_mm = size_mm  # the tissue the points cover (what a "no lump" from them claims)
         self.expected_total = len(self.points)
         self._next = 0
 
@@ -51,9 +52,9 @@ def plan(strategy: str, size_mm, max_palpations: int, seed: int, settings=None):
     if settings is not None and settings.palpation.mode == "sliding":
         return _sliding_plan(strategy, size_mm, max_palpations, seed, settings)
     if strategy == "raster":
-        return FixedPlan(strategies.raster_points(size_mm, max_palpations))
+        return FixedPlan(strategies.raster_points(size_mm, max_palpations), size_mm)
     if strategy == "random":
-        return FixedPlan(strategies.random_points(size_mm, max_palpations, seed))
+        return FixedPlan(strategies.random_points(size_mm, max_palpations, seed), size_mm)
     if strategy == "active":
         from palpd.config import Settings
         from palpd.learner import ActivePlanner
@@ -66,7 +67,8 @@ def _sliding_plan(strategy: str, size_mm, max_palpations: int, seed: int, settin
     from palpd import slide
 
     if strategy in ("raster", "random"):
-        return FixedPlan(slide.fixed_paths(strategy, size_mm, max_palpations, seed, settings.palpation.sliding_length_mm))
+        paths = slide.fixed_paths(strategy, size_mm, max_palpations, seed, settings.palpation.sliding_length_mm)
+        return FixedPlan(paths, size_mm)
     if strategy == "active":
         return slide.SlidingPlanner(size_mm, settings, max_palpations, seed)
     raise UsageError(f"unknown strategy {strategy!r}; choose from {', '.join(strategies.STRATEGIES)}")
@@ -209,6 +211,10 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     }
     if failing:
         body["undetermined_reason"] = failing
+    if getattr(planner, "size_mm", None) is not None and model is None and verdict != "undetermined":
+        # a fixed plan's claim, as the learner's model states its own: how large a lump could lie unread
+        good = [pr.record.xy_mm for pr in probes if pr.fit is not None]
+        body["unfelt_radius_mm"] = round(unfelt_radius_mm(good, planner.size_mm), 1)
     if p.mode == "sliding":
         body["paths_lifted_at_force_limit"] = lifted
     true_peak_n = servo.true_max_contact_force_n

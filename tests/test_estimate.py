@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from palpd.estimate import estimate_lumps, stiffness_threshold
+from palpd.estimate import estimate_lumps, stiffness_threshold, unfelt_radius_mm
 from palpd.stiffness import FitRejected, fit_linear
 
 
@@ -79,3 +79,27 @@ def test_iou_of_a_boundary_gone_astray_is_zero_without_gigabytes():
     astray = circle_polygon((5.0, 5.0), 17462.0)
     assert iou(astray, {"center_mm": [0.0, 0.0], "radius_mm": 5.0}) < 1e-3
     assert iou(circle_polygon((0.0, 0.0), 5.0), {"center_mm": [0.0, 0.0], "radius_mm": 5.0}) > 0.97
+
+
+def test_what_a_fixed_plan_rules_out_is_the_farthest_spot_from_its_readings():
+    """A raster of 2 x 2 at the corners of a 60 mm tissue leaves its centre 42.4 mm from every reading: its
+    "no lump" rules out nothing smaller (before, `palpd scan --max-palpations 4` said "no lump" beside a
+    10 mm lump in the middle, and no more)."""
+    corners = [(-30.0, -30.0), (30.0, -30.0), (-30.0, 30.0), (30.0, 30.0)]
+    assert unfelt_radius_mm(corners, (60.0, 60.0)) == pytest.approx(30.0 * np.sqrt(2.0), abs=0.01)
+    assert unfelt_radius_mm([(0.0, 0.0)], (80.0, 40.0)) == pytest.approx(np.hypot(40.0, 20.0), abs=0.01)
+    assert unfelt_radius_mm([], (60.0, 60.0)) == np.inf
+
+
+SPOT = st.tuples(st.floats(-30, 30), st.floats(-20, 20))
+
+
+@given(st.lists(SPOT, min_size=1, max_size=20), SPOT)
+@settings(max_examples=40, deadline=None)
+def test_a_reading_more_never_widens_what_could_lie_unfelt(readings, more):
+    size = (60.0, 40.0)
+    before = unfelt_radius_mm(readings, size)
+    assert unfelt_radius_mm(readings + [more], size) <= before + 1e-9
+    # the tissue's corners are spots too: none lies farther from every reading than the claim says
+    corners = [(-30, -20), (30, 20), (30, -20), (-30, 20)]
+    assert before >= max(min(np.hypot(x - rx, y - ry) for rx, ry in readings) for x, y in corners) - 1e-9

@@ -125,6 +125,9 @@ def test_cli_scan_writes_report_and_plot(tmp_path, run_cli):
                 "faults", "lumps", "probes", "truth", "metrics"):
         assert key in report
     assert report["scene"] == "paper" and report["palpations"] == 9 and len(report["probes"]) == 9
+    # what the verdict claims: 3 x 3 at the edges and the middle leaves (±15, ±15) 21.2 mm from every reading
+    assert report["unfelt_radius_mm"] == pytest.approx(21.2, abs=0.1)
+    assert "a lump under 21.2 mm in radius could lie unfelt between the readings" in result.stdout
     assert set(report["lumps"][0]) >= {"center_mm", "radius_mm", "center_sd_mm", "radius_sd_mm", "boundary_mm"}
     png = (tmp_path / "r.png").read_bytes()
     assert png.startswith(b"\x89PNG") and len(png) > 20_000
