@@ -214,19 +214,24 @@ class Hypotheses:
 
     def _soft_wanted(self, best_k: int, obs: Observations) -> bool:
         """A soft region is worth a fit: one was in the running, or the likeliest count of lumps apart misses a
-        reading below it by more than SUPPORT_SIGMA, and by more than it misses any above it. (Any fit of too
-        few lumps leaves the tissue's readings below it, pulled up by a lump's; what only a soft region
-        explains lies further below than any lump lies above: `none` over a lump and a few readings of tissue
-        had a soft region tried from the fourth reading on, and the scans took other courses.)"""
+        reading below it (by more than SUPPORT_SIGMA), further in stiffness than it misses any above it. (Any
+        fit of too few lumps leaves the tissue's readings below it, pulled up by a lump's; what only a soft
+        region explains lies further below than any lump lies above: `none` over a lump and a few readings of
+        tissue had a soft region tried from the fourth reading on, and the scans took other courses. Further
+        in stiffness, not in sds: soft tissue is read as a small force against the sensor's noise, with a
+        wide sd; soft-3-0's cyst read 34 sds below `none` and its lump 62 above, 5x softer and 2x stiffer,
+        the soft region was never tried and the scan ended `undetermined`.)"""
         if any(w >= CONTENDER_WEIGHT for name, w in self.weights.items() if "+soft" in name):
             return True
         counts = [self.fits.get(self._name_of(k)) for k in range(best_k + 1)]
         apart = [fit for fit in counts if fit is not None and fit.supported
                  and evidence.apart(fit.family, fit.theta)] or [self.fits["none"]]
         fit = max(apart, key=lambda fit: fit.log_evidence)
-        z, _ = self._misses(fit, obs)
-        below = float(np.max(np.where(obs.kind == EXACT, -z, 0.0)))
-        return below > evidence.SUPPORT_SIGMA and below > float(np.max(np.where(obs.kind >= 0, z, 0.0)))
+        z, f = self._misses(fit, obs)
+        missed = np.abs(z) > evidence.SUPPORT_SIGMA
+        deepest = float(np.max(np.where((obs.kind == EXACT) & missed & (z < 0), f - obs.y, 0.0)))
+        highest = float(np.max(np.where((obs.kind >= 0) & missed & (z > 0), obs.y - f, 0.0)))
+        return deepest > highest
 
     def _soft_fit(self, family: shapes.Family, base: Fit | None, fewer: Fit | None, obs: Observations,
                   priors: Priors, max_starts: int | None, thorough: bool) -> Fit | None:
