@@ -36,6 +36,11 @@ top with a linear ramp, an ellipse ending near the tissue's edge, a stiff region
 80 × 60 mm tissue, a lump on a background that stiffens across the tissue, plain tissue with 2 % noise;
 then four lumps whose rise ends: a low cone, a large cone, a paraboloid's cap, a flat top with a wide
 ramp): the same kind of try (README, "Tried beyond" and "Latest").
+
+    .venv/bin/python scripts/make_scene_maps.py --steps DIR
+
+writes eight stiff inclusions drawn by hand as steps (0.5 N/mm in 0.12, nothing between) on 0.5-2 mm grids,
+none of them shipped (README, "Scenes": what the learner does with a staircase edge).
 """
 from __future__ import annotations
 
@@ -150,6 +155,35 @@ PROFILES = {
     "cap": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.36 * np.clip(1 - (_distance(p, 2, -6) / 12) ** 2, 0, 1)),
     "ramp": ((60, 60), 1.5, 0.02, lambda p: TISSUE + 0.40 * np.clip((14 - _distance(p, -3, 5)) / 10, 0, 1)),
 }
+def _disc(cx: float, cy: float, r: float):
+    return lambda p: _distance(p, cx, cy) <= r
+
+
+def _inside_ellipse(cx: float, cy: float, a: float, b: float, degrees: float):
+    c, s = math.cos(math.radians(degrees)), math.sin(math.radians(degrees))
+    def inside(p: np.ndarray) -> np.ndarray:
+        u, v = (p[:, 0] - cx) * c + (p[:, 1] - cy) * s, -(p[:, 0] - cx) * s + (p[:, 1] - cy) * c
+        return (u / a) ** 2 + (v / b) ** 2 <= 1.0
+    return inside
+
+
+def _step(inside):
+    """A stiff inclusion drawn by hand: 0.5 N/mm inside, the tissue's 0.12 outside, nothing between."""
+    return lambda p: np.where(inside(p), 0.5, TISSUE)
+
+
+# Stiff inclusions drawn as steps (README, "Scenes" and "Still open"): discs of 4, 6, 10 (2 mm grid), 8 (0.5 mm)
+# and 7 mm (2 mm, no noise), a 6 x 2.5 mm ellipse at 30°, a 16 mm square, two 6 mm discs.
+STEPS = {
+    "d4": ((60, 60), 1.0, 0.02, _step(_disc(5, -3, 4))),
+    "d6": ((60, 60), 1.0, 0.02, _step(_disc(-8, 6, 6))),
+    "d10g2": ((60, 60), 2.0, 0.02, _step(_disc(3, 2, 10))),
+    "ell": ((60, 60), 1.0, 0.02, _step(_inside_ellipse(2, -4, 6, 2.5, 30))),
+    "square": ((60, 60), 1.0, 0.02, _step(lambda p: np.maximum(np.abs(p[:, 0] - 4), np.abs(p[:, 1] + 3)) <= 8)),
+    "two": ((60, 60), 1.0, 0.02, _step(lambda p: _disc(-12, -8, 6)(p) | _disc(12, 10, 6)(p))),
+    "d8g05": ((60, 60), 0.5, 0.02, _step(_disc(-4, 3, 8))),
+    "d7g2q": ((60, 60), 2.0, 0.0, _step(_disc(6, 5, 7))),
+}
 REGION_SCENE = """name = "{name}"
 seed = 4
 
@@ -162,6 +196,9 @@ map = "{name}.csv"
 noise_n = 0.01
 tilt = true
 """
+# the step maps' scenes take the bench's default seed (as `palpd scan --scene FILE` does), which is how they were
+# first measured
+STEP_SCENE = REGION_SCENE.replace("seed = 4\n", "")
 
 
 def write(name: str, xy: np.ndarray, k: np.ndarray, out: Path = OUT) -> None:
@@ -173,26 +210,30 @@ def write_regions(out: Path) -> None:
     write_maps(out, {name: ((60, 60), *rest) for name, rest in REGIONS.items()})
 
 
-def write_maps(out: Path, maps: dict) -> None:
-    """Each map's CSV and a scene that palpates it, into `out`."""
+def write_maps(out: Path, maps: dict, scene: str | None = None) -> None:
+    """Each map's CSV and a scene that palpates it (REGION_SCENE unless given), into `out`."""
+    scene = REGION_SCENE if scene is None else scene
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(7)
     for name, ((width, height), step_mm, noise, k_at) in maps.items():
         xy = grid(step_mm, (width / 2.0, height / 2.0))
         write(f"{name}.csv", xy, k_at(xy) * (1.0 + noise * rng.standard_normal(len(xy))), out)
-        (out / f"{name}.toml").write_text(REGION_SCENE.format(name=name, width=width, height=height))
+        (out / f"{name}.toml").write_text(scene.format(name=name, width=width, height=height))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--regions", type=Path, metavar="DIR", help="write the unshipped stiff-region maps here")
     parser.add_argument("--profiles", type=Path, metavar="DIR", help="write the unshipped lump-profile maps here")
+    parser.add_argument("--steps", type=Path, metavar="DIR", help="write the unshipped maps drawn as steps here")
     args = parser.parse_args()
-    if args.regions or args.profiles:
+    if args.regions or args.profiles or args.steps:
         if args.regions:
             write_regions(args.regions)
         if args.profiles:
             write_maps(args.profiles, PROFILES)
+        if args.steps:
+            write_maps(args.steps, STEPS, STEP_SCENE)
         return
     rng = np.random.default_rng(11)
     OUT.mkdir(parents=True, exist_ok=True)

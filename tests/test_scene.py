@@ -228,3 +228,22 @@ def test_the_region_maps_the_learner_is_tried_on_load_and_hold_a_stiff_region(tm
         assert csv.read_bytes() == (tmp_path / "b" / csv.name).read_bytes()
         k = np.loadtxt(csv, delimiter=",", skiprows=1)[:, 2]
         assert np.mean(k > 1.3 * scene.tissue.stiffness_n_per_mm) >= 0.1, path.name
+
+
+def test_the_step_maps_the_learner_is_tried_on_load_and_hold_their_inclusions(tmp_path):
+    """scripts/make_scene_maps.py --steps DIR (README, "Scenes"): eight stiff inclusions drawn as steps that
+    load, each map's truth its inclusion (two for the two discs), at its drawn size."""
+    import subprocess
+    import sys
+
+    from palpd import metrics
+
+    subprocess.run([sys.executable, str(ROOT / "scripts" / "make_scene_maps.py"), "--steps", str(tmp_path)],
+                   check=True, capture_output=True, timeout=60)
+    scenes = {p.stem: load_scene(p) for p in sorted(tmp_path.glob("*.toml"))}
+    assert sorted(scenes) == ["d10g2", "d4", "d6", "d7g2q", "d8g05", "ell", "square", "two"]
+    for name, scene in scenes.items():
+        truth = metrics.scene_truth(scene)
+        assert len(truth) == (2 if name == "two" else 1), (name, truth)
+    (disc,) = metrics.scene_truth(scenes["d6"])
+    assert math.dist(disc["center_mm"], (-8.0, 6.0)) < 0.3 and disc["radius_mm"] == pytest.approx(6.0, abs=0.5)
