@@ -85,7 +85,9 @@ def estimate_lumps(xy_mm, k, min_contrast: float = 0.3) -> list[LumpEstimate]:
 
 def unfelt_radius_mm(xy_mm, size_mm, step_mm: float = 0.5) -> float:
     """The farthest any spot of the tissue (on a step_mm lattice, edges included) lies from a reading: a lump
-    whose disc holds no reading may be felt by none, so "no lump" rules out only lumps wider than this."""
+    whose disc holds no reading may be felt by none, so "no lump" rules out only lumps wider than this. (The
+    learner keeps the same distance up to date reading by reading, coverage.Readings; this is a fixed plan's,
+    once at its end.)"""
     readings = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
     if not len(readings):
         return math.inf
