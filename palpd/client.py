@@ -75,6 +75,7 @@ class Client:
         self._context = zmq.Context()
         self._dealer = None
         self.last_fault: FaultMsg | None = None  # the fault event heard while scan(wait=True) waited, if any
+        self.heard: dict[str, Event] = {}  # the last event of each topic a wait=True command asked for
 
     # Lifetime ---------------------------------------------------------------------------------------
 
@@ -147,10 +148,27 @@ class Client:
         args = {"strategy": strategy, **{k: v for k, v in options.items() if v is not None}}
         if not wait:
             return self.call("scan.start", **args)
-        self.last_fault = None
-        with self._subscription("status", "fault") as events:
-            self.call("scan.start", **args)
-            return self._until_scan_ends(events, wait_timeout_s)
+        return self._call_and_wait("scan.start", args, wait_timeout_s)
+
+    def _call_and_wait(self, cmd: str, args: dict, timeout_s: float | None, topics: tuple[str, ...] = (),
+                       complete: Callable[[dict], bool] = lambda heard: True) -> StatusReply:
+        """cmd, then the status once the daemon has left `scanning` (its job ended); the fault and the last
+        event of each of `topics` heard on the way are kept in last_fault and heard (complete(heard): all
+        the job's events are in)."""
+        self.last_fault, self.heard = None, {}
+        with self._subscription("status", "fault", *topics) as events:
+            self.call(cmd, **args)
+            status = self._until_scan_ends(events, timeout_s)
+            self._hear_trailing(events, status, complete)
+            return status
+
+    def _hear_trailing(self, events: zmq.Socket, status: StatusReply, complete: Callable[[dict], bool]) -> None:
+        """The events a job published before it ended may trail the status reply (another socket)."""
+        give_up = time.monotonic() + FAULT_EVENT_WAIT_S
+        while (status.state == "fault" and self.last_fault is None) or not complete(self.heard):
+            if not events.poll(max(0, int(1000 * (give_up - time.monotonic())))):
+                return
+            self._keep_event(events)
 
     def _until_scan_ends(self, events: zmq.Socket, timeout_s: float | None) -> StatusReply:
         """Status events (a heartbeat comes every status_interval_s) until the state leaves scanning; a fault
@@ -162,21 +180,22 @@ class Client:
             if left_s is not None and left_s <= 0:
                 raise TimeoutError(f"the scan did not end within {timeout_s:g} s")
             if events.poll(int(1000 * min(1.0, left_s if left_s is not None else 1.0))):
-                self._keep_fault(events)  # any event may be the end
+                self._keep_event(events)  # any event may be the end
             current = self.status()  # asked every second even when no event came (events on another endpoint)
-        give_up = time.monotonic() + FAULT_EVENT_WAIT_S  # the fault event may trail the status that ended it
-        while current.state == "fault" and self.last_fault is None and events.poll(
-                max(0, int(1000 * (give_up - time.monotonic())))):
-            self._keep_fault(events)
         return current
 
-    def _keep_fault(self, events: zmq.Socket) -> None:
+    def _keep_event(self, events: zmq.Socket) -> None:
+        """The next event: a fault is kept in last_fault, any other in heard[topic]."""
         topic, payload = events.recv_multipart()[:2]
-        if topic == b"fault":
-            try:
-                self.last_fault = FaultMsg.model_validate_json(payload)
-            except ValidationError:
-                pass  # a newer daemon's fault this client cannot read: the status's code still says which
+        model = EVENT_MODELS.get(topic.decode(errors="replace"))
+        try:
+            event = model.model_validate_json(payload) if model is not None else None
+        except ValidationError:
+            return  # a newer daemon's event this client cannot read: the status's code still says which fault
+        if isinstance(event, FaultMsg):
+            self.last_fault = event
+        elif event is not None:
+            self.heard[topic.decode()] = event
 
     def stop_scan(self) -> Reply:
         return self.call("scan.stop")
@@ -187,11 +206,21 @@ class Client:
     def reset(self) -> Reply:
         return self.call("reset")
 
-    def probe(self, x_mm: float, y_mm: float) -> Reply:
-        return self.call("probe.at", xy_mm=[float(x_mm), float(y_mm)])
+    def probe(self, x_mm: float, y_mm: float, *, wait: bool = False,
+              wait_timeout_s: float | None = None) -> Reply | StatusReply:
+        """One palpation at (x_mm, y_mm), tissue frame. wait=True: return the status once it has ended, with
+        what it read in heard["palpation"] (outcome) and heard["stiffness"] (when a fit held), or last_fault."""
+        args = {"xy_mm": [float(x_mm), float(y_mm)]}
+        if not wait:
+            return self.call("probe.at", **args)
+        return self._call_and_wait("probe.at", args, wait_timeout_s, ("palpation", "stiffness"), _reading_heard)
 
-    def bias(self) -> Reply:
-        return self.call("bias")
+    def bias(self, *, wait: bool = False, wait_timeout_s: float | None = None) -> Reply | StatusReply:
+        """Tare the force sensor out of contact (the arm moves clear first: a short job). wait=True: return
+        the status once the daemon is idle again, so the next command is not refused as busy."""
+        if not wait:
+            return self.call("bias")
+        return self._call_and_wait("bias", {}, wait_timeout_s)
 
     # Events -----------------------------------------------------------------------------------------
 
@@ -223,6 +252,12 @@ class Client:
 
 
 POLL_SLICE_S = 0.25
+
+
+def _reading_heard(heard: dict) -> bool:
+    """A palpation's events are in: its palpation, and its stiffness unless the palpation says none follows."""
+    palpation = heard.get("palpation")
+    return palpation is not None and (palpation.rejected is not None or "stiffness" in heard)
 
 
 def _poll_in_slices(socket: zmq.Socket, timeout_s: float | None, stop: Callable[[], bool] | None = None) -> bool:

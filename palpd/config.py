@@ -159,7 +159,7 @@ class SafetySettings(_Section):
 
 
 class ScanSettings(_Section):
-    strategy: Literal["raster", "random", "active"] = "raster"
+    strategy: Literal["raster", "random", "active"] = "active"
     max_palpations: Annotated[int, Field(ge=1, le=10000)] = 81
     seed: Annotated[int, Field(ge=0)] = 0
     min_contrast: Annotated[float, Field(gt=0)] = 0.3  # lump must be this much stiffer than tissue

@@ -31,7 +31,9 @@ def build_parser() -> argparse.ArgumentParser:
     commands.add_parser("status", help="lifecycle state and progress")
     scan = commands.add_parser("scan", help="start or stop a scan")
     scan.add_argument("action", choices=["start", "stop"])
-    scan.add_argument("--strategy", choices=["active", "raster", "random"])
+    scan.add_argument("--strategy", choices=["active", "raster", "random"],
+                      help="active (default): where the online learner is least sure; raster: a square grid; "
+                           "random: uniform points")
     scan.add_argument("--max-palpations", type=int, metavar="N")
     scan.add_argument("--seed", type=int, metavar="N")
     scan.add_argument("--center-mm", type=float, nargs=2, metavar=("X", "Y"), help="centre of the region")
@@ -46,10 +48,14 @@ def build_parser() -> argparse.ArgumentParser:
     commands.add_parser("estop", help="stop the robot now (latched)")
     commands.add_parser("reset", help="clear a latched fault")
     commands.add_parser("estimate", help="the latest estimate and the session's palpations (JSON)")
-    commands.add_parser("bias", help="tare the force sensor out of contact")
-    probe = commands.add_parser("probe", help="one palpation at a point (tissue frame, mm)")
-    probe.add_argument("x_mm", type=float, metavar="X")  # two positionals, not nargs=2 with a tuple
-    probe.add_argument("y_mm", type=float, metavar="Y")  # metavar: argparse's help cannot format that
+    commands.add_parser("bias", help="tare the force sensor out of contact; returns once the daemon is idle again")
+    probe = commands.add_parser(
+        "probe", help="one palpation at a point; waits for it and prints what it read",
+        description="Palpate once at (X, Y) and print the reading: outcome (fit, no_contact, too_stiff, too_soft, "
+                    "rejected) and stiffness in N/mm. X and Y are in mm in the tissue frame: origin at the centre "
+                    "of the palpable rectangle, x and y along its sides (e.g. `palpctl probe 7.5 -4`).")
+    probe.add_argument("x_mm", type=float, metavar="X", help="mm along the tissue's x side, from its centre")
+    probe.add_argument("y_mm", type=float, metavar="Y", help="mm along the tissue's y side, from its centre")
     commands.add_parser("watch", help="one line per palpation, estimate, state change and fault, until interrupted")
     plot = commands.add_parser("plot", help="picture of the posterior map, probes and lumps with their uncertainty")
     plot.add_argument("file", metavar="FILE.png")
@@ -69,18 +75,51 @@ def run(client, args) -> int:
         print(f"map written to {plot(client.estimate(), args.file)}")
         return 0
     if args.command == "scan" and args.action == "start":
-        reply = client.scan(args.strategy or "raster", wait=args.wait, **scan_options(args))
+        reply = client.scan(args.strategy or "active", wait=args.wait, **scan_options(args))
+        _note_raster(args, reply)
         if args.wait and reply.state == "fault":
-            fault = client.last_fault
-            said = f"{fault.code}: {fault.message}" if fault is not None else reply.message
-            print(f"palpctl: the scan ended in a fault ({said})", file=sys.stderr)
-            return 1
+            return _ended_in_fault(client, reply, "the scan")
     elif args.command == "probe":
-        reply = client.probe(args.x_mm, args.y_mm)
+        return _probe(client, args)
+    elif args.command == "bias":
+        reply = client.bias(wait=True)  # idle again when it returns: `palpctl bias; palpctl probe X Y` works
+        if reply.state == "fault":
+            return _ended_in_fault(client, reply, "the tare")
     else:
         cmd = {"scan": "scan.stop", "estimate": "estimate.get"}.get(args.command, args.command)
         reply = client.call(cmd)
     print(json.dumps(reply.model_dump(mode="json", exclude={"id", "ok"}), indent=2))
+    return 0
+
+
+def _ended_in_fault(client, status, what: str) -> int:
+    fault = client.last_fault
+    said = f"{fault.code}: {fault.message}" if fault is not None else status.message
+    print(f"palpctl: {what} ended in a fault ({said})", file=sys.stderr)
+    return 1
+
+
+def _note_raster(args, reply) -> None:
+    """A raster budget a square grid cannot use whole is said (3 palpating one spot surprises)."""
+    if args.strategy == "raster" and args.max_palpations and getattr(reply, "expected_total", 0) < args.max_palpations:
+        from palpd.strategies import raster_note
+
+        print(f"palpctl: {raster_note(args.max_palpations)}", file=sys.stderr)
+
+
+def _probe(client, args) -> int:
+    """One palpation; what it read, once the daemon has finished it (JSON, as the other commands)."""
+    status = client.probe(args.x_mm, args.y_mm, wait=True)
+    if status.state == "fault":
+        return _ended_in_fault(client, status, "the probe")
+    palpation, stiffness = client.heard.get("palpation"), client.heard.get("stiffness")
+    if palpation is None:
+        raise TimeoutError("the probe ended but its palpation was not heard on the event endpoint (--events?)")
+    reading = {"xy_mm": palpation.xy_mm, "target_xy_mm": palpation.target_xy_mm, "outcome": palpation.outcome,
+               "stiffness_n_per_mm": stiffness.stiffness_n_per_mm if stiffness else None,
+               "stiffness_sd_n_per_mm": stiffness.stiffness_sd_n_per_mm if stiffness else None,
+               "stiffness_bound_n_per_mm": palpation.stiffness_bound_n_per_mm, "rejected": palpation.rejected}
+    print(json.dumps(reading, indent=2))
     return 0
 
 

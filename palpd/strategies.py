@@ -20,6 +20,16 @@ def raster_points(size_mm: tuple[float, float], max_points: int) -> list[tuple[f
     return points
 
 
+def raster_note(max_points: int) -> str | None:
+    """What a raster makes of a budget that is not a square number (a square grid keeps the spacing the same
+    along both sides, as the seed paper's 9 x 9 did), said to the user; None when the budget is all used."""
+    side = max(1, math.isqrt(max_points))
+    if side * side == max_points:
+        return None
+    return (f"raster: {side} x {side} = {side * side} point{'s' if side > 1 else ''} "
+            f"(the largest square grid within {max_points})")
+
+
 def random_points(size_mm: tuple[float, float], count: int, seed: int) -> list[tuple[float, float]]:
     rng = np.random.default_rng(seed)
     half = np.array(size_mm) / 2

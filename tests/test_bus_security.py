@@ -54,7 +54,7 @@ def test_unknown_key_gets_nothing_and_an_observer_cannot_start_a_scan(tmp_path, 
         assert daemon.call("status", socket=as_stranger, timeout_s=1.0) is None
         assert daemon.call("status", socket=plain, timeout_s=0.5) is None
         observer_events = daemon.subscriber("status", keys=client_keys(observer, server_public))
-        assert daemon.call("scan.start", {"max_palpations": 4}, socket=as_operator)["ok"]
+        assert daemon.call("scan.start", {"strategy": "raster", "max_palpations": 4}, socket=as_operator)["ok"]
         assert receive(observer_events) is not None  # the observer hears the scan...
         assert receive(stranger_events, timeout_s=0.5) is None  # ...the stranger hears nothing
 

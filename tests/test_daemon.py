@@ -103,7 +103,7 @@ def test_replay_leaves_a_bound_the_scan_judged_a_bound():
 def test_sigterm_mid_scan_stops_safely_and_exits_0(daemon):
     daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
     subscriber = daemon.subscriber("stiffness")
-    assert daemon.call("scan.start", {"max_palpations": 81})["ok"]
+    assert daemon.call("scan.start", {"strategy": "raster", "max_palpations": 81})["ok"]
     assert receive(subscriber) is not None  # mid-scan
     daemon.signal(signal.SIGTERM)
     assert daemon.wait() == 0, daemon.process.stderr.read()
@@ -183,7 +183,7 @@ def test_palpctl_status_scan_estimate_and_plot(daemon, run_cli, tmp_path):
         return run_cli("--endpoint", daemon.commands, "--events", daemon.events, *args, module="palpd.palpctl")
 
     assert json.loads(palpctl("status").stdout)["state"] == "ready"
-    started = palpctl("scan", "start", "--max-palpations", "4", "--size-mm", "40", "40")  # an estimate to plot
+    started = palpctl("scan", "start", "--strategy", "raster", "--max-palpations", "4", "--size-mm", "40", "40")  # an estimate to plot
     assert started.returncode == 0, started.stderr
     daemon.wait_for(lambda s: s["state"] == "ready" and s["palpations"] == 4, what="scan end")
     assert json.loads(palpctl("estimate").stdout)["estimate"]["points"] == 4
@@ -191,3 +191,11 @@ def test_palpctl_status_scan_estimate_and_plot(daemon, run_cli, tmp_path):
     assert refused.returncode == 1 and "invalid_state" in refused.stderr
     assert palpctl("plot", "map.png").returncode == 0
     assert (tmp_path / "map.png").read_bytes().startswith(b"\x89PNG")
+    # issue 50: bias returns once the daemon is idle again, so the probe after it is not refused as busy; the
+    # probe waits for its palpation and prints what it read (it printed {"accepted": true})
+    assert palpctl("bias").returncode == 0
+    probed = palpctl("probe", "7.5", "-4")
+    assert probed.returncode == 0, probed.stderr
+    reading = json.loads(probed.stdout)
+    assert reading["outcome"] == "fit" and reading["stiffness_n_per_mm"] > 0.3, reading  # on the paper's lump
+    assert reading["target_xy_mm"] == [7.5, -4.0]

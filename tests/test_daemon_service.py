@@ -64,7 +64,7 @@ def test_sigterm_aborts_a_palpation_that_outlasts_stop_timeout(tmp_path):
     try:
         daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
         # 5 mm at 0.02 mm/s: one palpation is 250 s of robot time, far more than any wall time here.
-        assert daemon.call("scan.start", {"max_palpations": 4, "depth_mm": 5.0, "speed_mm_s": 0.02})["ok"]
+        assert daemon.call("scan.start", {"strategy": "raster", "max_palpations": 4, "depth_mm": 5.0, "speed_mm_s": 0.02})["ok"]
         wait_until_palpating(tmp_path / "state" / "sessions")
         signalled = time.monotonic()
         daemon.signal(signal.SIGTERM)
@@ -120,7 +120,7 @@ def test_palpctl_watch_probe_bias_estop_reset_and_a_probe_survives_kill_9(daemon
     try:
         lines = Lines(watch)
         assert lines.wait_for("status:") == "status: ready, 0 palpations"
-        palpctl("scan", "start", "--max-palpations", "9", "--size-mm", "40", "40")
+        palpctl("scan", "start", "--strategy", "raster", "--max-palpations", "9", "--size-mm", "40", "40")
         done = lines.wait_for("(done)")
         assert done.startswith("estimate from 9 points: lump at (") and re.search(r"; model \S+ \(weight [\d.]+\)", done)
         assert any(line.startswith("palpation ") and "N/mm" in line for line in lines.seen), lines.seen
@@ -136,7 +136,7 @@ def test_palpctl_watch_probe_bias_estop_reset_and_a_probe_survives_kill_9(daemon
 
         # an e-stop mid-scan: `scan start --wait` ends saying what the fault was, not only its code
         waiting = subprocess.Popen([sys.executable, "-m", "palpd.palpctl", *endpoints, "scan", "start", "--wait",
-                                    "--max-palpations", "4"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                    "--strategy", "raster", "--max-palpations", "4"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                    text=True, env=daemon.env)
         try:
             lines.wait_for("status: scanning")

@@ -235,8 +235,8 @@ class NoArgs(_Args):
 class ScanStartArgs(_Args):
     """Start a scan (a new session), or resume the unfinished one."""
 
-    strategy: Literal["raster", "random", "active"] = "raster"
-    """Where to palpate: a raster, uniform random points, or where the online learner is least sure."""
+    strategy: Literal["raster", "random", "active"] = "active"
+    """Where to palpate: where the online learner is least sure (the default), a raster, or uniform random points."""
     max_palpations: Optional[Annotated[int, Field(ge=1, le=10000)]] = None
     """Budget; null: 81 for raster/random, learner.max_palpations for active (its own rule usually stops it sooner)."""
     seed: Annotated[int, Field(ge=0)] = 0

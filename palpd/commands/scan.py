@@ -4,13 +4,14 @@ from __future__ import annotations
 import sys
 
 from palpd.errors import EXIT_FAILURE, EXIT_UNDETERMINED
+from palpd.strategies import raster_note
 
 
 def add_parser(subparsers):
     scan = subparsers.add_parser("scan", help="palpate a scene end to end and estimate its lumps")
     scan.add_argument("--scene", required=True, metavar="FILE|NAME",
                       help="scene file (TOML) or the name of a shipped scene (`palpd scenes`)")
-    scan.add_argument("--strategy", choices=["active", "raster", "random"], help="where to palpate (default raster)")
+    scan.add_argument("--strategy", choices=["active", "raster", "random"], help="where to palpate: active (default) asks the online learner where it is least sure; raster, a square grid; random, uniform points")
     scan.add_argument("--palpation", choices=["discrete", "sliding"],
                       help="press point by point, or slide along paths in contact (default discrete)")
     scan.add_argument("--max-palpations", type=int, metavar="N", help="budget (sliding: of paths)")
@@ -52,6 +53,7 @@ def run(args) -> int:
     from palpd.files import check_writable, write_json
 
     check_writable(args.report, args.plot)  # before the scan: its result must not be lost to a typo in a path
+    _note_raster(settings, args.max_palpations)
 
     def started(planner) -> None:
         p = settings.palpation
@@ -93,6 +95,14 @@ def run(args) -> int:
               f"there are{why} (raise {advice})", file=sys.stderr)
         return EXIT_UNDETERMINED
     return 0
+
+
+def _note_raster(settings, budget: int | None) -> None:
+    """A budget a square grid cannot use whole is said, even with --quiet: 3 palpating one spot surprises."""
+    if settings.scan.strategy == "raster" and settings.palpation.mode == "discrete":
+        note = raster_note(budget or settings.scan.max_palpations)
+        if note:
+            print(f"palpd: {note}", file=sys.stderr, flush=True)
 
 
 def _progress_printer(args):
