@@ -11,6 +11,7 @@ from palpd.errors import UsageError
 
 CONNECT_TIMEOUT_S = 10
 CLUSTER_EXTRA = "pip install 'palpd[cluster]'"
+HEALTH_ONLY = "distributed.http.health"  # the one HTTP route a local cluster serves: /health, no pages
 
 
 def has_distributed() -> bool:
@@ -53,16 +54,29 @@ def _on_dask(fn, tasks, scheduler: str, workers: int, done) -> list:
 
 
 def _connect(scheduler: str, workers: int):
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
-    if scheduler == "local":  # no dashboard: it would take a fixed port
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                               silence_logs=logging.ERROR)
+    if scheduler == "local":
+        cluster = local_cluster(workers)
         return Client(cluster), cluster
     try:
         return Client(scheduler, timeout=CONNECT_TIMEOUT_S), None
     except (OSError, TimeoutError, ValueError) as exc:
         raise UsageError(f"--scheduler {scheduler}: cannot reach the Dask scheduler ({exc})") from None
+
+
+def local_cluster(workers: int, processes: bool = True):
+    """A LocalCluster on loopback with no dashboard. dashboard_address=None alone is not that: the scheduler
+    still serves its HTTP routes (status pages, prometheus) on 0.0.0.0:8787, the workers on random ports.
+    Here every node binds 127.0.0.1 and serves /health only; a dashboard is for a cluster started on purpose
+    (--scheduler tcp://HOST:PORT)."""
+    import dask
+    from distributed import LocalCluster
+
+    with dask.config.set({f"distributed.{node}.http.routes": [HEALTH_ONLY] for node in ("scheduler", "worker")}):
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes, protocol="tcp",
+                            host="127.0.0.1", dashboard_address="127.0.0.1:0", scheduler_kwargs={"dashboard": False},
+                            silence_logs=logging.ERROR)
 
 
 def _on_pool(fn, tasks, workers: int, done) -> list:

@@ -1,0 +1,54 @@
+"""Issue 50's rough edges a newcomer met in the first hour, each pinned by a test that failed before the fix."""
+import json
+import os
+import urllib.error
+import urllib.request
+
+import psutil
+import pytest
+
+from conftest import SCENES
+from palpd import palpctl
+from palpd.bus.messages import ScanStartArgs
+from palpd.commands import scan as scan_command
+from palpd.config import Settings
+from palpd.strategies import raster_note
+
+
+def test_the_learner_is_the_default_strategy_of_settings_the_bus_and_palpctl(monkeypatch):
+    assert Settings().scan.strategy == "active" and ScanStartArgs().strategy == "active"
+    asked = {}
+
+    class Recorder:
+        def scan(self, strategy, **options):
+            asked["strategy"] = strategy
+            return ScanStartArgs()  # any model: palpctl prints it
+
+    palpctl.run(Recorder(), palpctl.build_parser().parse_args(["scan", "start"]))
+    assert asked["strategy"] == "active"
+
+
+def test_a_raster_says_the_grid_it_lays_when_the_budget_is_not_square(capsys):
+    assert raster_note(3) == "raster: 1 x 1 = 1 point (the largest square grid within 3)"
+    assert raster_note(10) == "raster: 3 x 3 = 9 points (the largest square grid within 10)"
+    assert raster_note(81) is None
+    scan_command._note_raster(Settings().updated(scan={"strategy": "raster"}), 3)
+    assert "1 x 1 = 1 point" in capsys.readouterr().err
+    scan_command._note_raster(Settings(), 3)  # the learner spends its budget as it sees fit: nothing to say
+    assert capsys.readouterr().err == ""
+
+
+def test_a_local_dask_cluster_serves_no_dashboard_and_binds_loopback_only():
+    pytest.importorskip("distributed")
+    from palpd.tradeoff.schedulers import local_cluster
+
+    cluster = local_cluster(1, processes=False)
+    try:
+        listening = [c.laddr for c in psutil.Process(os.getpid()).net_connections("tcp") if c.status == "LISTEN"]
+        assert listening and all(address.ip == "127.0.0.1" for address in listening), listening
+        http_port = cluster.scheduler.http_server._sockets  # tornado's: {fd: socket}
+        (port,) = {s.getsockname()[1] for s in http_port.values()}
+        with pytest.raises(urllib.error.HTTPError, match="404"):
+            urllib.request.urlopen(f"http://127.0.0.1:{port}/status", timeout=5)
+    finally:
+        cluster.close()
