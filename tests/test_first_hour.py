@@ -52,3 +52,13 @@ def test_a_local_dask_cluster_serves_no_dashboard_and_binds_loopback_only():
             urllib.request.urlopen(f"http://127.0.0.1:{port}/status", timeout=5)
     finally:
         cluster.close()
+
+
+def test_palpd_scenes_says_measured_map_and_counts_only_lumps_stiffer_than_the_tissue(capsys):
+    from palpd.cli import main
+
+    assert main(["scenes"]) == 0
+    lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()}
+    assert "measured map," in lines["elongated-lump"] and "lump(s)" not in lines["elongated-lump"].split(",")[0]
+    assert " 0 lump(s) and 1 softer spot(s)," in lines["soft-cyst"]  # a cyst is tissue to palpate, not a lump
+    assert " 2 lump(s)," in lines["two-lumps"]

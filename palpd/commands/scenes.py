@@ -14,20 +14,33 @@ def run(args) -> int:
     from drivers.sim.scene import load_scene
     from palpd.shipped import scene_names, shipped_scene
 
-    rows = []
-    for name in scene_names():
-        path = shipped_scene(name)
-        scene = load_scene(path)
-        rows.append({"name": name, "lumps": len(scene.lump), "size_mm": list(scene.tissue.size_mm),
-                     "about": _first_comment(path), "path": str(path)})
+    rows = [_row(name, shipped_scene(name), load_scene(shipped_scene(name))) for name in scene_names()]
     if args.json:
         print(json.dumps(rows, indent=2))
         return 0
     width = max(len(row["name"]) for row in rows)
     for row in rows:
         w, h = row["size_mm"]
-        print(f"{row['name']:{width}s}  {row['lumps']} lump(s), {w:g} x {h:g} mm  {row['about']}")
+        print(f"{row['name']:{width}s}  {_what(row)}, {w:g} x {h:g} mm  {row['about']}")
     return 0
+
+
+def _row(name: str, path, scene) -> dict:
+    """A scene's summary. Its lumps are those stiffer than the tissue (as the scan's truth counts them); a
+    measured map's felt field is the map, whose lumps the scene's [[lump]] tables (none) do not say."""
+    from drivers.sim.scene import truth_lumps
+
+    lumps = None if scene.tissue.map else len(truth_lumps(scene))
+    return {"name": name, "lumps": lumps, "softer": len(scene.lump) - (lumps or 0),
+            "map": scene.tissue.map is not None, "size_mm": list(scene.tissue.size_mm),
+            "about": _first_comment(path), "path": str(path)}
+
+
+def _what(row: dict) -> str:
+    if row["map"]:
+        return "measured map"
+    softer = f" and {row['softer']} softer spot(s)" if row["softer"] else ""
+    return f"{row['lumps']} lump(s){softer}"
 
 
 def _first_comment(path) -> str:
