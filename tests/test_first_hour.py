@@ -62,3 +62,23 @@ def test_palpd_scenes_says_measured_map_and_counts_only_lumps_stiffer_than_the_t
     assert "measured map," in lines["elongated-lump"] and "lump(s)" not in lines["elongated-lump"].split(",")[0]
     assert " 0 lump(s) and 1 softer spot(s)," in lines["soft-cyst"]  # a cyst is tissue to palpate, not a lump
     assert " 2 lump(s)," in lines["two-lumps"]
+
+
+def test_building_the_package_gives_no_setuptools_warning_about_the_shipped_data_folders(tmp_path):
+    """`make run` / `pip install .` printed ~150 lines: 'palpd.share.scenes' (and calibration, scenes.maps)
+    absent from the packages configuration. build_py is the step that warns; in a copy, the tree stays clean."""
+    import shutil
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    for name in ("setup.py", "pyproject.toml", "README.md", "palpd", "drivers", "config", "systemd"):
+        copy = shutil.copytree if (ROOT / name).is_dir() else shutil.copy
+        copy(ROOT / name, tmp_path / name, **({"ignore": shutil.ignore_patterns("__pycache__")}
+                                               if (ROOT / name).is_dir() else {}))
+    built = subprocess.run([sys.executable, "setup.py", "-q", "build_py", "--build-lib", "lib"], cwd=tmp_path,
+                           capture_output=True, text=True, timeout=60)
+    assert built.returncode == 0, built.stderr
+    assert "palpd.share" not in built.stderr, built.stderr
+    assert (tmp_path / "lib/palpd/share/scenes/maps/half-stiff.csv").exists()
