@@ -17,13 +17,13 @@ def check_writable(*paths: str | Path | None) -> None:
 
 
 def _check_writable(path: Path) -> None:
-    """Its directory is made (as writing would) and must be writable; the path must not be a directory."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:
-        raise PalpdError(f"{path}: cannot write: {path.parent} is a file, not a directory") from None
-    except OSError as exc:
-        raise PalpdError(f"{path}: cannot write: {exc.strerror}") from None
+    """Its directory must exist and be writable (never made: a typo would make a tree, as root a root-owned
+    one); the path must not be a directory. `palpd scan --report`, `palpctl plot` and the rest say it alike."""
+    parent = path.parent if str(path.parent) else Path(".")
+    if parent.is_file():
+        raise PalpdError(f"{path}: cannot write: {parent} is a file, not a directory")
+    if not parent.is_dir():
+        raise PalpdError(f"{path}: cannot write: there is no directory {parent}")
     if path.is_dir():
         raise PalpdError(f"{path}: cannot write: Is a directory")
     try:  # a file made there and dropped: os.access says yes to root wherever permissions are the only bar (/proc too)
@@ -44,8 +44,6 @@ def write_text(path: str | Path, text: str) -> None:
     path = Path(path)
     temporary = path.with_name(f".{path.name}.tmp")
     try:
-        if path.parent and not path.parent.exists():
-            path.parent.mkdir(parents=True)
         with temporary.open("w") as handle:
             handle.write(text)
             handle.flush()

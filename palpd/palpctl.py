@@ -72,6 +72,9 @@ def run(client, args) -> int:
     if args.command == "watch":
         return watch(client)
     if args.command == "plot":
+        from palpd.files import check_writable
+
+        check_writable(args.file)  # as `palpd scan --plot` does, and before asking the daemon
         print(f"map written to {plot(client.estimate(), args.file)}")
         return 0
     if args.command == "scan" and args.action == "start":

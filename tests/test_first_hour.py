@@ -82,3 +82,16 @@ def test_building_the_package_gives_no_setuptools_warning_about_the_shipped_data
     assert built.returncode == 0, built.stderr
     assert "palpd.share" not in built.stderr, built.stderr
     assert (tmp_path / "lib/palpd/share/scenes/maps/half-stiff.csv").exists()
+
+
+def test_a_missing_directory_is_one_line_naming_it_for_scan_report_and_palpctl_plot(tmp_path, capsys):
+    """`palpd scan --report /no/such/dir/r.json` made the directory (as root, root's), `palpctl plot` refused."""
+    from palpd.cli import main
+
+    missing = tmp_path / "no" / "such"
+    assert main(["scan", "--scene", "paper", "--quiet", "--report", str(missing / "r.json")]) != 0
+    assert palpctl.main(["--endpoint", "tcp://127.0.0.1:9", "--timeout", "0.2", "plot", str(missing / "m.png")]) == 1
+    said = capsys.readouterr().err.strip().splitlines()
+    assert said == [f"palpd: {missing / 'r.json'}: cannot write: there is no directory {missing}",
+                    f"palpctl: {missing / 'm.png'}: cannot write: there is no directory {missing}"]
+    assert not (tmp_path / "no").exists()
