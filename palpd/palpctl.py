@@ -11,6 +11,7 @@ import json
 import os
 import signal
 import sys
+import time
 
 from palpd import __version__
 from palpd.client import Client, CommandRefused
@@ -159,9 +160,15 @@ def watch(client) -> int:
         # One subscription for the whole watch: a new one misses what is published while it connects. It
         # has connected once it hears its first event (a status heartbeat comes every second); the state
         # asked for after that is where the lines start, and no later change is missed.
-        events = client.events(stop=lambda: bool(stopping))
+        first_by = time.monotonic() + client.timeout_s  # a heartbeat comes every second from a live daemon
+        heard: list[bool] = []
+        events = client.events(stop=lambda: bool(stopping) or (not heard and time.monotonic() > first_by))
         if next(events, None) is None:
-            return 0
+            if stopping:
+                return 0
+            raise TimeoutError(f"nothing answered on {client.events_endpoint} within {client.timeout_s:g} s "
+                               "(is --events the daemon's event endpoint?)")
+        heard.append(True)
         status = client.status()  # a late joiner: the state now, then every change
         print(f"status: {status.state}, {status.palpations} palpations", flush=True)
         last_status = [status.state, status.message]

@@ -95,3 +95,49 @@ def test_a_missing_directory_is_one_line_naming_it_for_scan_report_and_palpctl_p
     assert said == [f"palpd: {missing / 'r.json'}: cannot write: there is no directory {missing}",
                     f"palpctl: {missing / 'm.png'}: cannot write: there is no directory {missing}"]
     assert not (tmp_path / "no").exists()
+
+
+def test_watch_with_no_events_on_its_endpoint_says_so_in_one_line_within_its_timeout():
+    """The daemon answers commands, but --events names a port where nothing publishes: watch printed nothing
+    and waited for ever, whatever --timeout said."""
+    import subprocess
+    import sys
+    import threading
+    import time
+
+    import zmq
+
+    from palpd.bus.replies import StatusReply
+
+    context = zmq.Context()
+    router = context.socket(zmq.ROUTER)
+    router.setsockopt(zmq.LINGER, 0)
+    commands = f"tcp://127.0.0.1:{router.bind_to_random_port('tcp://127.0.0.1')}"
+    silent = context.socket(zmq.PUB)  # bound, so the SUB connects, and never publishes
+    silent.setsockopt(zmq.LINGER, 0)
+    events = f"tcp://127.0.0.1:{silent.bind_to_random_port('tcp://127.0.0.1')}"
+
+    done = threading.Event()
+
+    def answer_status() -> None:
+        while not done.is_set():
+            if not router.poll(50):
+                continue
+            peer, body = router.recv_multipart()
+            request = json.loads(body)
+            reply = StatusReply(id=request["id"], seq=0, t=0.0, state="ready", palpations=0).model_dump_json()
+            router.send_multipart([peer, reply.encode()])
+
+    answering = threading.Thread(target=answer_status)
+    answering.start()
+    started = time.monotonic()
+    try:
+        watch = subprocess.run([sys.executable, "-m", "palpd.palpctl", "--endpoint", commands, "--events", events,
+                                "--timeout", "0.5", "watch"], capture_output=True, text=True, timeout=10)
+    finally:
+        done.set()
+        answering.join()
+        context.destroy(linger=0)
+    assert watch.returncode == 1 and time.monotonic() - started < 5.0
+    assert watch.stdout == "" and watch.stderr == f"palpctl: nothing answered on {events} within 0.5 s " \
+                                                  "(is --events the daemon's event endpoint?)\n"
