@@ -221,7 +221,7 @@ class BusSettings(_Section):
     # Required when an endpoint is not loopback or ipc.
     curve_secret_key: str = ""
     operator_keys: str = ""  # all commands
-    observer_keys: str = ""  # events and read-only commands
+    observer_keys: str = ""  # events, read-only commands and estop
 
 
 class DaemonSettings(_Section):

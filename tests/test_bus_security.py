@@ -1,9 +1,10 @@
-"""CURVE on the bus: strangers get nothing, observers read but cannot command the robot; key hygiene."""
+"""CURVE on the bus: strangers get nothing, observers read and may stop the arm but not command it; key hygiene."""
 import json
 import os
 import stat
 import subprocess
 import sys
+import time
 
 import pytest
 import zmq
@@ -57,6 +58,13 @@ def test_unknown_key_gets_nothing_and_an_observer_cannot_start_a_scan(tmp_path, 
         assert daemon.call("scan.start", {"strategy": "raster", "max_palpations": 4}, socket=as_operator)["ok"]
         assert receive(observer_events) is not None  # the observer hears the scan...
         assert receive(stranger_events, timeout_s=0.5) is None  # ...the stranger hears nothing
+        # issue 50: an emergency stop is open to every authenticated client; restarting the arm is not
+        stopped = daemon.call("estop", socket=as_observer)
+        assert stopped["ok"] and stopped["estop"], stopped
+        give_up = time.monotonic() + 20.0
+        while daemon.call("status", socket=as_observer)["state"] != "fault":
+            assert time.monotonic() < give_up, "the observer's estop did not stop the scan"
+            time.sleep(0.05)
 
         def palpctl(key_name, *args):
             return run_cli("--endpoint", daemon.commands, "--server-key", tmp_path / "server" / "palpd.key",

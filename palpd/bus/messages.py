@@ -266,7 +266,9 @@ COMMAND_ARGS: dict[str, type[BaseModel]] = {
     "status": NoArgs, "scan.start": ScanStartArgs, "scan.stop": NoArgs, "estop": NoArgs, "reset": NoArgs,
     "estimate.get": NoArgs, "probe.at": ProbeAtArgs, "bias": NoArgs,
 }
-READ_ONLY_COMMANDS = ("status", "estimate.get")  # what observers may send
+# What observers may send: reading, and stopping the arm (an emergency stop is open to every authenticated
+# client, as a hardware e-stop button is to everyone in the room); restarting it (reset) needs an operator.
+OBSERVER_COMMANDS = ("status", "estimate.get", "estop")
 
 
 class Request(BaseModel):

@@ -17,7 +17,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from drivers.errors import describe_validation_error
-from palpd.bus.messages import COMMAND_ARGS, READ_ONLY_COMMANDS
+from palpd.bus.messages import COMMAND_ARGS, OBSERVER_COMMANDS
 from palpd.bus.security import LOCAL, OPERATOR
 
 MAX_REQUEST_BYTES = 1 << 16  # answered with an error beyond this (the transport cuts frames at MAX_FRAME_BYTES)
@@ -114,7 +114,7 @@ def _no_constant(name: str):
 
 
 def check_role(cmd: str, role: str) -> None:
-    if role in (OPERATOR, LOCAL) or (role and cmd in READ_ONLY_COMMANDS):
+    if role in (OPERATOR, LOCAL) or (role and cmd in OBSERVER_COMMANDS):
         return
     raise CommandError("forbidden", f"{cmd[:40]} needs an operator key")
 

@@ -1,7 +1,8 @@
 """Who may talk to palpd: loopback/ipc endpoints by default, CURVE with two key lists otherwise.
 
-Operators may send every command; observers may subscribe and send read-only
-commands. The ZAP handler (pyzmq's ThreadAuthenticator) refuses unknown keys
+Operators may send every command; observers may subscribe, send read-only
+commands, and `estop` (anyone allowed to watch the arm may stop it; only an
+operator restarts it). The ZAP handler (pyzmq's ThreadAuthenticator) refuses unknown keys
 at the handshake, so a stranger gets nothing at all, not even an error reply.
 Every process that binds a bus endpoint (the daemon, `palpd learner`) builds
 its Security here, so each refuses a non-loopback endpoint without CURVE, and
