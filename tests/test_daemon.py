@@ -110,6 +110,9 @@ def test_sigterm_mid_scan_stops_safely_and_exits_0(daemon):
     (session,) = (daemon.state_dir / "sessions").iterdir()
     entries = read_journal(session / "journal.jsonl")
     assert 1 <= len(entries) < 81
+    log = daemon.process.stderr.read()  # issue 50: the start-up log says the servo's priority and Foxglove's state
+    assert "servo process: SCHED_OTHER (virtual time runs flat out: no real-time priority)" in log, log
+    assert "Foxglove live server off" in log, log
     recording = (session / "recording-1.mcap").read_bytes()
     assert recording.endswith(b"\x89MCAP0\r\n")  # closed properly: footer and magic written
 

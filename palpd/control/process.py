@@ -55,16 +55,17 @@ def _open(conn, ring: SampleRing, settings, scene, seed, realtime):
     except Exception as exc:  # anything else would only show as "servo process exited": say what it was
         conn.send(("error", PalpdError(f"cannot open the bench: {type(exc).__name__}: {exc}"), None))
         return None
+    from palpd.control.realtime import prepare_realtime, scheduling
+
     notes = []
     if realtime:  # a virtual-time loop runs flat out: it must not do so at real-time priority
-        from palpd.control.realtime import prepare_realtime
-
         notes = prepare_realtime()
         for note in notes:
             print(f"palpd: servo: {note}", file=sys.stderr, flush=True)
+    got = scheduling() if realtime else f"{scheduling()} (virtual time runs flat out: no real-time priority)"
     ring.beat(bench.clock.now(), 0, 0)  # the clock is readable before the first tick
     conn.send(("ready", {"frame": bench.frame, "tissue_size_mm": bench.tissue_size_mm,
-                         "period_s": bench.servo.period_s, "realtime_notes": notes}, None))
+                         "period_s": bench.servo.period_s, "realtime_notes": notes, "scheduling": got}, None))
     return bench
 
 

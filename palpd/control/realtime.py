@@ -36,6 +36,18 @@ def prepare_realtime() -> list[str]:
     return notes
 
 
+def scheduling() -> str:
+    """The scheduling this process got, as the start-up log says it: "SCHED_FIFO 80", "SCHED_OTHER"."""
+    try:
+        policy, priority = os.sched_getscheduler(0), os.sched_getparam(0).sched_priority
+    except (AttributeError, OSError):
+        return "unknown (no sched_getscheduler here)"
+    names = {getattr(os, name): name for name in ("SCHED_OTHER", "SCHED_FIFO", "SCHED_RR", "SCHED_BATCH",
+                                                  "SCHED_IDLE") if hasattr(os, name)}
+    name = names.get(policy, f"policy {policy}")
+    return f"{name} {priority}" if priority else name
+
+
 def _mlockall() -> bool:
     name = ctypes.util.find_library("c")
     if name is None:

@@ -102,6 +102,9 @@ class Supervisor:
         log.info("events (PUB) on %s, commands (ROUTER) on %s (%s)", bus.events, bus.commands, curve)
         for viewer in self.viewers:
             log.info("%s on %s", viewer.what, viewer.url)
+        if not self.settings.daemon.foxglove:
+            log.info("Foxglove live server off (daemon.foxglove = \"127.0.0.1:8765\" turns it on)")
+        log.info("servo process: %s", self.bench.servo.scheduling)
         log.info("sessions in %s", self.sessions_dir)
 
     def _recover(self) -> None:
