@@ -3,6 +3,7 @@ import json
 import signal
 import subprocess
 import sys
+import time
 
 import pytest
 import zmq
@@ -202,3 +203,13 @@ def test_palpctl_status_scan_estimate_and_plot(daemon, run_cli, tmp_path):
     reading = json.loads(probed.stdout)
     assert reading["outcome"] == "fit" and reading["stiffness_n_per_mm"] > 0.3, reading  # on the paper's lump
     assert reading["target_xy_mm"] == [7.5, -4.0]
+    # ...and its recording ends with it: an idle daemon recorded 1 kHz samples for as long as it idled
+    (probes,) = [path for path in (daemon.state_dir / "sessions").iterdir()
+                 if json.loads((path / "session.json").read_text())["status"] == "probes"]
+    (entry,) = read_journal(probes / "journal.jsonl")
+    recording = probes / entry["recording"]
+    samples = [p for topic, p, _ in read_closed(recording)["messages"] if topic == "samples"]  # closed: a summary
+    assert samples and samples[-1]["t"] >= entry["t_end_s"]
+    size = recording.stat().st_size
+    time.sleep(1.0)
+    assert recording.stat().st_size == size

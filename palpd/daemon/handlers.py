@@ -129,9 +129,8 @@ def probe_at(sup, command) -> None:
         return
     if sup.probe_session is None:
         sup.probe_session = Session.create(sup.sessions_dir, {"kind": "probe.at"}, status=PROBES)
-    if sup.recording is None:  # recorded until the next scan starts or the daemon stops
-        sup.open_recording(sup.probe_session)
     sup.job = ProbeJob(sup.settings, command.args.xy_mm, sup.probe_session)
+    sup.open_recording(sup.probe_session)  # a file per probe, closed when it ends: an idle daemon records nothing
     sup.worker.submit(sup.job)
     sup.set_state("scanning", "probe")
     sup.commands.reply(command, accepted=True)
@@ -165,5 +164,5 @@ def job_ended(sup, fault: dict | None) -> None:
     else:
         sup.set_state("ready", "scan finished" if getattr(job, "finished", False) else
                       "servo process restarted" if isinstance(job, RestartServoJob) else "")
-    if isinstance(job, ScanJob):
+    if isinstance(job, (ScanJob, ProbeJob)):
         sup.close_recording()  # after the last status and fault, so the recording has them

@@ -158,6 +158,7 @@ class ProbeJob:
 
     def __init__(self, settings, xy_mm, session) -> None:
         self.settings, self.xy_mm, self.session = settings, xy_mm, session
+        self.recording = ""  # the MCAP file of this probe, named by the supervisor
 
     def __call__(self, worker) -> None:
         p, servo = self.settings.palpation, worker.bench.servo
@@ -170,6 +171,7 @@ class ProbeJob:
         finally:
             servo.stop()
         entry = journal_entry(len(self.session.entries), probe, worker.bench.clock.now())
+        entry["recording"] = self.recording  # whose raw samples hold it, as a scan's entries say
         self.session.journal(entry)
         publish_entry(worker, entry)
 
