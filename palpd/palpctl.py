@@ -14,6 +14,7 @@ import sys
 import time
 
 from palpd import __version__
+from palpd.bus.replies import ScanStartReply
 from palpd.client import Client, CommandRefused
 from palpd.errors import PalpdError
 
@@ -104,11 +105,15 @@ def _ended_in_fault(client, status, what: str) -> int:
 
 
 def _note_raster(args, reply) -> None:
-    """A raster budget a square grid cannot use whole is said (3 palpating one spot surprises)."""
-    if args.strategy == "raster" and args.max_palpations and getattr(reply, "expected_total", 0) < args.max_palpations:
-        from palpd.strategies import raster_note
+    """A raster budget a square grid cannot use whole is said (3 palpating one spot surprises); the start's
+    reply says what the daemon planned (with --wait, the reply is the end's status: nothing to compare)."""
+    if args.strategy != "raster" or not args.max_palpations or not isinstance(reply, ScanStartReply):
+        return
+    from palpd.strategies import raster_note
 
-        print(f"palpctl: {raster_note(args.max_palpations)}", file=sys.stderr)
+    note = raster_note(args.max_palpations)
+    if note and reply.expected_total < args.max_palpations:
+        print(f"palpctl: {note}", file=sys.stderr)
 
 
 def _probe(client, args) -> int:

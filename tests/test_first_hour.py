@@ -10,6 +10,7 @@ import pytest
 from conftest import SCENES
 from palpd import palpctl
 from palpd.bus.messages import ScanStartArgs
+from palpd.bus.replies import ScanStartReply
 from palpd.commands import scan as scan_command
 from palpd.config import Settings
 from palpd.strategies import raster_note
@@ -36,6 +37,14 @@ def test_a_raster_says_the_grid_it_lays_when_the_budget_is_not_square(capsys):
     assert "1 x 1 = 1 point" in capsys.readouterr().err
     scan_command._note_raster(Settings(), 3)  # the learner spends its budget as it sees fit: nothing to say
     assert capsys.readouterr().err == ""
+
+    class Daemon:
+        def scan(self, strategy, **options):
+            return ScanStartReply(id="1", session="s", expected_total=1, already_done=0)
+
+    args = palpctl.build_parser().parse_args(["scan", "start", "--strategy", "raster", "--max-palpations", "3"])
+    assert palpctl.run(Daemon(), args) == 0
+    assert capsys.readouterr().err == "palpctl: raster: 1 x 1 = 1 point (the largest square grid within 3)\n"
 
 
 def test_a_local_dask_cluster_serves_no_dashboard_and_binds_loopback_only():
