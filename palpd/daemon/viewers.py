@@ -99,7 +99,9 @@ class LiveView:
 
 
 class FoxgloveStream:
-    """Every bus topic as a JSON channel of the same name on a Foxglove WebSocket server (the SDK's)."""
+    """Every bus topic as a JSON channel of the same name on a Foxglove WebSocket server (the SDK's). The SDK
+    (0.30) accepts the WebSocket subprotocol `foxglove.sdk.v1` only (the Foxglove app asks for it); a client
+    asking for `foxglove.websocket.v1` alone is refused with HTTP 400 (docs/how-to/foxglove.md)."""
 
     def __init__(self, address: str) -> None:
         try:
@@ -107,7 +109,7 @@ class FoxgloveStream:
         except ImportError:
             raise ConfigError("daemon.foxglove is set but the Foxglove SDK is missing: "
                               "pip install 'palpd[foxglove]'") from None
-        from palpd.bus.messages import recording_schemas
+        from palpd.bus.messages import EVENT_MODELS, recording_schemas
 
         host, port = parse_address(address, "daemon.foxglove")
         if not is_local_endpoint(f"tcp://{host}:{port}"):  # the SDK's server has no authentication
@@ -118,8 +120,9 @@ class FoxgloveStream:
             self.server = foxglove.start_server(name="palpd", host=host, port=port, context=self.context)
         except Exception as exc:  # the SDK raises its own error types for a port in use
             raise PalpdError(f"daemon.foxglove {address}: cannot listen: {exc}") from None
+        # the bus topics only: the 1 kHz raw samples are the recording's, never streamed, so never advertised
         self.channels = {topic: foxglove.Channel(topic, schema=schema, context=self.context)
-                         for topic, schema in recording_schemas().items()}
+                         for topic, schema in recording_schemas().items() if topic in EVENT_MODELS}
         self.what, self.url = "Foxglove WebSocket", f"ws://{host}:{self.server.port}"
 
     def event(self, topic: str, payload: dict) -> None:
