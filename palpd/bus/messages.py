@@ -178,7 +178,8 @@ class Estimate(Event):
     lumps: list[LumpMsg]
     """The lumps found (empty: none)."""
     next_probe_mm: Optional[tuple[float, float]] = None
-    """Where the learner would palpate next (null once it is sure enough)."""
+    """Where the learner would palpate next (null once it is sure enough, and in a scan whose strategy is not
+    the learner's: a raster's or random scan's next point is its plan's, not the learner's)."""
     done: bool = False
     """The scan that made this estimate has ended."""
     ambiguous_area_mm2: Optional[float] = None

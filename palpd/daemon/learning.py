@@ -26,9 +26,10 @@ def scan_settings(settings, scan: dict):
 class LearnerEstimator:
     """The learner over a rectangle of the tissue (tissue-frame points in, tissue-frame answers out)."""
 
-    def __init__(self, settings, center_mm, size_mm, max_palpations: int, seed: int = 0) -> None:
+    def __init__(self, settings, center_mm, size_mm, max_palpations: int, seed: int = 0, plans: bool = True) -> None:
         self.cx, self.cy = float(center_mm[0]), float(center_mm[1])
         self.max_palpations = max_palpations
+        self.plans = plans  # the learner chooses the probes (active); a raster's estimate names no next probe
         # Here, not at the top: the learner and its scipy take ~0.4 s to import, and a daemon that never
         # estimates (a probe, a bias, a status) should not pay it on every start.
         from palpd.learner.planner import make_learner
@@ -62,7 +63,7 @@ class LearnerEstimator:
     def estimate(self) -> dict:
         """Fields of the bus `estimate` event."""
         return {"points": len(self.k_n_per_mm), "lumps": [self._shifted(lump.as_dict()) for lump in self.learner.lumps()],
-                "next_probe_mm": self.next_probe(), "ambiguous_area_mm2": self.learner.ambiguous_area_mm2(),
+                "next_probe_mm": self.next_probe() if self.plans else None, "ambiguous_area_mm2": self.learner.ambiguous_area_mm2(),
                 "model": self.learner.model()}
 
     def posterior_map(self, max_cells_per_side: int = MAP_CELLS_PER_SIDE) -> dict | None:
@@ -106,4 +107,5 @@ def make_estimator(settings, scan: dict | None, tissue_size_mm) -> LearnerEstima
     budget = scan.get("max_palpations") or settings.learner.max_palpations
     if scan.get("palpation") == "sliding":
         budget = math.inf  # the budget counts paths (palpd.slide.PathPlan); readings are many per path
-    return LearnerEstimator(settings, scan.get("center_mm") or (0.0, 0.0), size, budget, scan.get("seed") or 0)
+    return LearnerEstimator(settings, scan.get("center_mm") or (0.0, 0.0), size, budget, scan.get("seed") or 0,
+                            plans=scan.get("strategy", "active") == "active")

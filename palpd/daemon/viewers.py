@@ -60,13 +60,17 @@ class LiveView:
             self.server = LiveServer(host, port, self.state, token)
         except OSError as exc:
             raise PalpdError(f"daemon.http {address}: cannot listen: {exc.strerror or exc}") from None
-        self._session, self._probes, self._faults = None, [], []
+        self._session, self._probes, self._faults, self._state = None, [], [], None
         self.what, self.url = "live view", self.server.url
 
     def event(self, topic: str, payload: dict) -> None:
         if topic == "status":
             if payload["session"] != self._session:
                 self.probes([], payload["session"])
+            if self._state == "fault" and payload["state"] != "fault" and self._faults:
+                self._faults = []  # cleared by reset: the panel shows the faults that stand, not old ones
+                self.state.update("faults", self._faults)
+            self._state = payload["state"]
             self.state.update("status", payload)
         elif topic == "estimate":
             self.state.update("estimate", payload)

@@ -128,12 +128,40 @@ function drawProbes(f, kScale) {
     }
     ctx.fillStyle = "#000"; ctx.fillText(String(order + 1), X + 4, Y - 3);
   });
+  // the learner's next probe: the daemon names one only when the learner chooses the probes (an active scan)
   const next = view.estimate && view.estimate.next_probe_mm;
-  if (next && view.status && view.status.state === "scanning") {
+  const ring = Boolean(next && view.status && view.status.state === "scanning");
+  if (ring) {
     ctx.strokeStyle = "#0b6e4f"; ctx.lineWidth = 2; ctx.beginPath();
     ctx.arc(f.px(next[0]), f.py(next[1]), 7, 0, 2 * Math.PI); ctx.stroke();
   }
+  canvas.dataset.nextProbe = ring ? "1" : "0";
   canvas.dataset.probes = String(view.probes.length);
+}
+
+// Tick marks every `step` mm (10 on a 60 mm tissue), from the origin out, so 0 is always one of them.
+function tickValues(half) {
+  const step = [1, 2, 5, 10, 20, 50, 100].find((s) => half / s <= 4) || 200;
+  const ticks = [];
+  for (let v = -Math.floor(half / step) * step; v <= half + 1e-9; v += step) ticks.push(v);
+  return ticks;
+}
+
+// mm ticks along the tissue's bottom and left edges: where a probe or a lump is can be read off the map.
+function drawTicks(f) {
+  const xs = tickValues(f.w / 2), ys = tickValues(f.h / 2);
+  const bottom = f.py(-f.h / 2), left = f.px(-f.w / 2);
+  ctx.strokeStyle = "#555"; ctx.fillStyle = "#333"; ctx.lineWidth = 1; ctx.font = "10px sans-serif";
+  ctx.beginPath();
+  for (const x of xs) { ctx.moveTo(f.px(x), bottom); ctx.lineTo(f.px(x), bottom + 5); }
+  for (const y of ys) { ctx.moveTo(left, f.py(y)); ctx.lineTo(left - 5, f.py(y)); }
+  ctx.stroke();
+  ctx.textAlign = "center"; ctx.textBaseline = "top";
+  for (const x of xs) ctx.fillText(String(x), f.px(x), bottom + 6);
+  ctx.textAlign = "right"; ctx.textBaseline = "middle";
+  for (const y of ys) ctx.fillText(String(y), left - 7, f.py(y));
+  ctx.textAlign = "left";
+  canvas.dataset.ticksX = xs.join(","); canvas.dataset.ticksY = ys.join(",");
 }
 
 function draw() {
@@ -144,8 +172,9 @@ function draw() {
   drawMap(f, kScale);
   ctx.strokeStyle = "#999"; ctx.setLineDash([3, 3]); ctx.lineWidth = 1;
   ctx.strokeRect(f.px(-f.w / 2), f.py(f.h / 2), f.w * f.scale, f.h * f.scale); ctx.setLineDash([]);
+  drawTicks(f);
   ctx.fillStyle = "#555"; ctx.font = "11px sans-serif"; ctx.textBaseline = "top";
-  ctx.fillText(`${f.w} × ${f.h} mm (tissue frame, x right, y up)`, 8, 4);
+  ctx.fillText(`${f.w} × ${f.h} mm, ticks in mm (tissue frame: origin at the centre, x right, y up)`, 8, 4);
   drawLumps(f); drawProbes(f, kScale); drawColourbar(kScale);
 }
 
@@ -193,6 +222,15 @@ function panel() {
 
 function render() { panel(); draw(); }
 
+// ?snapshot=1: draw the state once and keep no stream open, so a headless browser's virtual time can run out
+// (`chromium --headless --screenshot --virtual-time-budget=...`: an open event stream never lets it idle).
+async function snapshotOnce() {
+  const answer = await fetch("state" + location.search);
+  Object.assign(view, await answer.json());
+  text("connection", "(snapshot)"); render();
+  document.body.dataset.ready = "1";
+}
+
 function connect() {
   const source = new EventSource("events" + location.search);
   source.addEventListener("open", () => text("connection", "(live)"));
@@ -209,4 +247,4 @@ document.getElementById("mode").addEventListener("click", (ev) => {
   draw();
 });
 render();
-connect();
+if (new URLSearchParams(location.search).get("snapshot") === "1") snapshotOnce(); else connect();

@@ -1,11 +1,13 @@
 """The live view's HTTP server: the page, a JSON snapshot, and server-sent events (stdlib http.server).
 
-GET /         the page (index.html, live.js: no build step, no CDN)
-GET /state    the current snapshot as JSON: status, estimate, probes, map, faults, tissue size
+GET /         the page (index.html, live.js: no build step, no CDN); /?snapshot=1 draws /state once and
+              keeps no stream open (for a headless browser's screenshot: docs/how-to/screenshot-live-view.md)
+GET /state    the current snapshot as JSON: status, estimate, probes, map, faults (current only), tissue size
 GET /events   text/event-stream: a `snapshot` event at once, then `status`, `estimate`, `probes`, `map`, `fault`
 
 Each /events client has a bounded queue: a client that stops reading is dropped, never waited for.
-A non-loopback address needs `daemon.http_token` (sent as ?token= or `Authorization: Bearer`).
+A non-loopback address needs `daemon.http_token` (sent as ?token= or `Authorization: Bearer`); the page
+loaded with it sets a session cookie that lets its script and event stream in.
 """
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import json
 import logging
 import queue
 import threading
+from http.cookies import SimpleCookie
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
 from urllib.parse import parse_qs, urlsplit
@@ -21,6 +24,7 @@ from urllib.parse import parse_qs, urlsplit
 log = logging.getLogger("palpd.http")
 CLIENT_QUEUE = 256  # updates a slow page may fall behind before it is dropped
 KEEPALIVE_S = 10.0
+COOKIE = "palpd_token"  # set on the page's load with the token: its live.js and /events come without one
 ASSETS = {"/": ("index.html", "text/html; charset=utf-8"), "/live.js": ("live.js", "text/javascript; charset=utf-8")}
 
 
@@ -94,13 +98,23 @@ class LiveServer:
         return f"http://{host}:{port}/"
 
     def authorised(self, handler: BaseHTTPRequestHandler) -> bool:
+        """The token as ?token=, `Authorization: Bearer`, or the cookie the page's own load set (so the
+        page's script and event stream, which the browser asks for without the token, are let in too)."""
         if not self.token:
             return True
         offered = parse_qs(urlsplit(handler.path).query).get("token", [""])[0]
         header = handler.headers.get("Authorization", "")
         if header.startswith("Bearer "):
             offered = header[len("Bearer "):]
+        if not offered:
+            cookie = SimpleCookie(handler.headers.get("Cookie", ""))
+            offered = cookie[COOKIE].value if COOKIE in cookie else ""
         return hmac.compare_digest(offered.encode(), self.token.encode())
+
+    def session_cookie(self) -> str | None:
+        """Set-Cookie for an authorised page load: the browser's session only, never sent to another site
+        or read by a script."""
+        return f"{COOKIE}={self.token}; Path=/; HttpOnly; SameSite=Strict" if self.token else None
 
     def close(self) -> None:
         self.state.end_streams()
@@ -118,7 +132,8 @@ def _handler_for(server: LiveServer):
                 self._send(401, b"a token is needed (?token=... or Authorization: Bearer ...)\n", "text/plain")
             elif path in ASSETS:
                 name, kind = ASSETS[path]
-                self._send(200, resources.files("palpd.web").joinpath(name).read_bytes(), kind)
+                cookie = server.session_cookie() if path == "/" else None
+                self._send(200, resources.files("palpd.web").joinpath(name).read_bytes(), kind, cookie)
             elif path == "/state":
                 self._send(200, json.dumps(server.state.snapshot()).encode(), "application/json")
             elif path == "/events":
@@ -126,8 +141,10 @@ def _handler_for(server: LiveServer):
             else:
                 self._send(404, b"not found\n", "text/plain")
 
-        def _send(self, code: int, body: bytes, kind: str) -> None:
+        def _send(self, code: int, body: bytes, kind: str, cookie: str | None = None) -> None:
             self.send_response(code)
+            if cookie:
+                self.send_header("Set-Cookie", cookie)
             self.send_header("Content-Type", kind)
             self.send_header("Content-Length", str(len(body)))
             self.send_header("Cache-Control", "no-store")
