@@ -129,10 +129,18 @@ def test_palpctl_edges_never_show_a_traceback(daemon, tmp_path):
 def test_the_live_page_follows_a_running_scan_in_headless_chromium(daemon, tmp_path):
     from PIL import Image
 
+    assert daemon.call("estop")["ok"]  # a fault, cleared by reset before the scan: not on the page during it
+    daemon.wait_for(lambda s: s["state"] == "fault", what="fault")
+    assert daemon.call("reset")["ok"]
+    daemon.wait_for(lambda s: s["state"] == "ready", what="ready after the reset")
     assert daemon.call("scan.start", {"strategy": "active", "max_palpations": 18, "seed": 2})["ok"]
     browser = HeadlessChromium(daemon.http, tmp_path / "profile")
     try:
         browser.wait_for("document.getElementById('state').textContent === 'scanning'")
+        assert browser.evaluate("document.getElementById('faults').innerText") == "none"
+        assert browser.evaluate("document.getElementById('map').dataset.ticksX") == "-30,-20,-10,0,10,20,30"
+        assert browser.evaluate("document.getElementById('map').dataset.ticksY") == "-30,-20,-10,0,10,20,30"
+        browser.wait_for("document.getElementById('map').dataset.nextProbe === '1'")  # the learner's next probe
         first = int(browser.wait_for("+document.getElementById('map').dataset.probes >= 3 && "
                                      "+document.getElementById('map').dataset.probes"))
         later = int(browser.wait_for(f"+document.getElementById('map').dataset.probes > {first} && "
@@ -149,10 +157,22 @@ def test_the_live_page_follows_a_running_scan_in_headless_chromium(daemon, tmp_p
         model = browser.evaluate("document.getElementById('model').textContent")
         assert re.fullmatch(r"(none|circles:\d|ellipse:\d|free-form) \(weight [\d.]+(, runner-up \S+)?\)", model), model
         assert int(browser.evaluate("+document.getElementById('map').dataset.lumps")) >= 1
+        assert daemon.call("scan.start", {"strategy": "raster", "max_palpations": 9})["ok"]
+        browser.wait_for("document.getElementById('state').textContent === 'scanning' && "
+                         "+document.getElementById('map').dataset.probes >= 1")
+        assert browser.evaluate("document.getElementById('map').dataset.nextProbe") == "0"  # a raster's: no ring
+        daemon.wait_for(lambda s: s["state"] == "ready", what="raster end", timeout_s=120)
     finally:
         browser.close()
     colours = shot.crop((20, 60, 620, 660)).getcolors(1 << 16)
     assert colours is not None and len(colours) > 50  # a drawn map, not a blank canvas
+    # the documented screenshot (docs/how-to/screenshot-live-view.md): ?snapshot=1 lets virtual time run out
+    subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                    f"--user-data-dir={tmp_path / 'shot-profile'}", "--window-size=1100,820",
+                    "--virtual-time-budget=3000", f"--screenshot={tmp_path / 'snapshot.png'}",
+                    daemon.http + "?snapshot=1"], capture_output=True, timeout=60, check=True)
+    snapshot = Image.open(tmp_path / "snapshot.png").convert("RGB").crop((20, 60, 620, 660)).getcolors(1 << 16)
+    assert snapshot is not None and len(snapshot) > 50
 
 
 def test_the_foxglove_stream_advertises_every_topic_and_streams_status(daemon):
