@@ -18,11 +18,13 @@ matplotlib.use("Agg")  # files only; the daemon has no screen
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402
 from matplotlib.patches import Circle, Rectangle  # noqa: E402
+from matplotlib.patheffects import withStroke  # noqa: E402
 from matplotlib.transforms import offset_copy  # noqa: E402
 
 from palpd.errors import PalpdError  # noqa: E402
 
-TITLE_WIDTH = 90  # characters per line of the title's last line, why a scan ended undetermined
+TITLE_WIDTH = 60  # characters per line of the title's last line, why a scan ended undetermined (map-wide)
+PROBE_NUMBER_PT = 8  # probe numbers: readable in a README-sized picture
 MIN_CONTRAST = 0.3  # the stiffness colour scale spans at least this fraction of the median (scan.min_contrast)
 LUMP, TRUTH, FAILED, SOFT = "#d0009c", "k", "#c00000", "#1f77b4"
 
@@ -94,16 +96,21 @@ def draw_probes(fig, ax, probes: list[dict]) -> None:
         points = ax.scatter(xy[:, 0], xy[:, 1], c=[p["stiffness_n_per_mm"] for _, p in fitted], cmap="viridis",
                             norm=stiffness_norm(p["stiffness_n_per_mm"] for _, p in fitted), s=30,
                             edgecolors="k", linewidths=0.4, zorder=4, label="probe (number: order)")
-        bar = fig.colorbar(points, ax=ax, label="stiffness (N/mm)", fraction=0.046, pad=0.16, shrink=_bar_shrink(ax))
-        bar.ax.yaxis.set_label_position("left")  # clear of the P(lump) bar beside it
-        bar.ax.yaxis.set_ticks_position("left")
+        beside = len(fig.axes) > 1  # the P(lump) bar is there already
+        bar = fig.colorbar(points, ax=ax, label="stiffness (N/mm)", fraction=0.046, pad=0.16 if beside else 0.03,
+                           shrink=_bar_shrink(ax))
+        if beside:
+            bar.ax.yaxis.set_label_position("left")  # clear of the P(lump) bar beside it
+            bar.ax.yaxis.set_ticks_position("left")
     if failed:
         aimed = np.array([p.get("target_xy_mm") or p["xy_mm"] for _, p in failed])
         ax.scatter(aimed[:, 0], aimed[:, 1], marker="x", c=FAILED, s=36, linewidths=1.6, zorder=4,
                    label="failed probe, where aimed")
     for i, p in fitted + failed:
         x, y = p["xy_mm"] if p["stiffness_n_per_mm"] is not None else (p.get("target_xy_mm") or p["xy_mm"])
-        ax.annotate(str(i), (x, y), xytext=(3, 3), textcoords="offset points", fontsize=5.5, zorder=5)
+        # above the lump outlines, with a white halo: readable on any colour of the map under it
+        ax.annotate(str(i), (x, y), xytext=(3.5, 3.5), textcoords="offset points", fontsize=PROBE_NUMBER_PT,
+                    zorder=9, path_effects=[withStroke(linewidth=2.2, foreground="white")])
 
 
 def draw_lumps(ax, lumps: list[dict], model: dict | None = None) -> None:
@@ -145,18 +152,20 @@ def draw_truth(ax, lumps: list[dict]) -> None:
 
 
 def _title(report: dict) -> str:
+    """One short line per fact, so the title stays over the map and clear of the colour bars beside it."""
     source = report.get("scene") or (f"session {report['session']}" if report.get("session") else "palpd")
-    title = f"{source} — {report.get('strategy') or 'scan'}, {report['palpations']} palpations"
+    lines = [f"{source} — {report.get('strategy') or 'scan'}, {report['palpations']} palpations"]
     model = report.get("model")
     if model:
         said = f"{report['verdict']}: " if report.get("verdict") else "model "  # a live estimate has no verdict yet
-        title += f", {said}{model['chosen']} (weight {model['weight']:.2f})"
+        lines.append(f"{said}{model['chosen']} (weight {model['weight']:.2f})")
     metrics = report.get("metrics")
     if metrics and metrics.get("max_center_error_mm") is not None:
-        title += f"\ncentre error {metrics['max_center_error_mm']:.2f} mm, radius error {metrics['max_radius_error_mm']:.2f} mm"
+        lines.append(f"centre error {metrics['max_center_error_mm']:.2f} mm, "
+                     f"radius error {metrics['max_radius_error_mm']:.2f} mm")
     if report.get("verdict") == "undetermined" and model and model.get("undecided"):
-        title += "\n" + textwrap.fill(f"why: {model['undecided']}", TITLE_WIDTH)  # why, where one looks
-    return title
+        lines.append(textwrap.fill(f"why: {model['undecided']}", TITLE_WIDTH))  # why, where one looks
+    return "\n".join(lines)
 
 
 def posterior_of(planner, report: dict, settings, size_mm) -> dict | None:

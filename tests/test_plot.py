@@ -1,4 +1,6 @@
 """The scan picture's and the scan command's words: what they say of the model chosen and of each lump."""
+import numpy as np
+
 from palpd.plot import _title
 
 MODEL = {"chosen": "ellipse:1", "weight": 0.994}
@@ -6,9 +8,9 @@ MODEL = {"chosen": "ellipse:1", "weight": 0.994}
 
 def test_a_finished_scan_says_its_verdict_and_a_live_estimate_its_model():
     finished = _title({"scene": "paper", "strategy": "active", "palpations": 21, "verdict": "lumps", "model": MODEL})
-    assert finished == "paper — active, 21 palpations, lumps: ellipse:1 (weight 0.99)"
+    assert finished == "paper — active, 21 palpations\nlumps: ellipse:1 (weight 0.99)"
     live = _title({"session": "20261126-204938", "palpations": 19, "model": MODEL})  # palpctl plot: no verdict yet
-    assert live == "session 20261126-204938 — scan, 19 palpations, model ellipse:1 (weight 0.99)"
+    assert live == "session 20261126-204938 — scan, 19 palpations\nmodel ellipse:1 (weight 0.99)"
     assert _title({"session": "s", "palpations": 2, "model": None}) == "session s — scan, 2 palpations"
 
 
@@ -17,10 +19,37 @@ def test_an_undetermined_scan_s_picture_says_why():
            "accounts for: no hypothesis on offer explains them")
     title = _title({"scene": "blotches", "strategy": "active", "palpations": 40, "verdict": "undetermined",
                     "model": {**MODEL, "undecided": why}})
-    first, *why_lines = title.split("\n")
-    assert first == "blotches — active, 40 palpations, undetermined: ellipse:1 (weight 0.99)"
-    assert " ".join(why_lines) == f"why: {why}" and all(len(line) <= 90 for line in why_lines)
-    assert "\n" not in _title({"scene": "p", "palpations": 9, "verdict": "lumps", "model": {**MODEL, "undecided": None}})
+    first, second, *why_lines = title.split("\n")
+    assert (first, second) == ("blotches — active, 40 palpations", "undetermined: ellipse:1 (weight 0.99)")
+    assert " ".join(why_lines) == f"why: {why}" and all(len(line) <= 60 for line in why_lines)
+    assert "why" not in _title({"scene": "p", "palpations": 9, "verdict": "lumps", "model": {**MODEL, "undecided": None}})
+
+
+def test_the_picture_s_title_stays_over_the_map_and_its_probe_numbers_above_the_lumps_at_8_pt(tmp_path, monkeypatch):
+    """`palpctl plot`'s title ran into the colour bar; probe numbers were 5.5 pt, under the lump outlines."""
+    import matplotlib.pyplot as plt
+
+    from palpd import plot
+
+    kept = {}
+    monkeypatch.setattr(plt, "close", lambda fig: kept.setdefault("fig", fig))
+    probes = [{"xy_mm": [x, 0.0], "target_xy_mm": [x, 0.0], "stiffness_n_per_mm": 0.1 + 0.1 * i}
+              for i, x in enumerate((-20.0, 0.0, 20.0))]
+    circle = [[10 * np.cos(a), 10 * np.sin(a)] for a in np.linspace(0, 2 * np.pi, 40)]
+    lump = {"center_mm": [0, 0], "radius_mm": 10, "center_sd_mm": 0.5, "radius_sd_mm": 0.5, "boundary_mm": circle}
+    live = {"session": "20261128-051440", "strategy": "", "palpations": 3, "probes": probes, "lumps": [lump],
+            "model": {"chosen": "circles:1", "weight": 1.0}}
+    posterior = {"xs_mm": [-30.0, 0.0, 30.0], "ys_mm": [-30.0, 0.0, 30.0], "p_lump": np.eye(3).tolist(),
+                 "confidence": 0.9}
+    plot.plot_scan(live, (60.0, 60.0), tmp_path / "map.png", posterior)
+    fig = kept["fig"]
+    ax = fig.axes[0]
+    renderer = fig.canvas.get_renderer()
+    title, bars = ax.title.get_window_extent(renderer), [a.get_window_extent(renderer) for a in fig.axes[1:]]
+    assert bars and all(title.x1 < bar.x0 for bar in bars), (title, bars)
+    numbers = [t for t in ax.texts if t.get_text() in ("1", "2", "3")]
+    lump_z = max(line.get_zorder() for line in ax.lines)
+    assert len(numbers) == 3 and all(t.get_fontsize() >= 8 and t.get_zorder() > lump_z for t in numbers)
 
 
 def test_a_lump_the_tissue_edge_cuts_says_so_in_the_scan_s_lump_line():
