@@ -63,3 +63,26 @@ def test_a_lump_the_tissue_edge_cuts_says_so_in_the_scan_s_lump_line():
     assert "whole shape's axes 71.81 ± 4.15 / 22.28 ± 1.17 mm at 75.4°" in line
     whole = {k: v for k, v in cut.items() if k not in ("cut_by_edge", "boundary_sd_mm")}
     assert "part on the tissue" not in _lump_line(whole) and ", axes 71.81" in _lump_line(whole)
+
+
+def test_the_pareto_front_s_labels_never_lie_on_one_another(tmp_path, monkeypatch):
+    """Close points of a front had their labels at one fixed offset: printed on top of one another."""
+    import matplotlib.pyplot as plt
+    from matplotlib.text import Text
+
+    from palpd.tradeoff import pareto
+
+    kept = {}
+    monkeypatch.setattr(plt, "close", lambda fig: kept.setdefault("fig", fig))
+    rows = [{"scene": "paper", "seed": 0, "strategy": "active", "palpation": "discrete", "setting": f"n={n};tolerance_mm=1.0",
+             "palpations": n, "robot_time_s": 50.0 + 2.0 * n, "iou": 0.90 + 0.002 * n, "center_error_mm": 1.0 / n,
+             "radius_error_mm": 0.1, "lumps_found": 1, "lumps_true": 1} for n in range(10, 18)]
+    rows.append({**rows[-1], "strategy": "raster", "setting": "n=81", "robot_time_s": 400.0, "iou": 0.95,
+                 "center_error_mm": 0.01})  # far off: the others crowd into the axes' first eighth
+    pareto.plot(rows, pareto.settings_summary(rows), tmp_path / "pareto.png")
+    fig = kept["fig"]
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        boxes = [Text.get_window_extent(t, renderer) for t in ax.texts]
+        assert len(boxes) == 9
+        assert not [(a, b) for i, a in enumerate(boxes) for b in boxes[i + 1:] if a.overlaps(b)]

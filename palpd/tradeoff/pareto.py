@@ -74,8 +74,9 @@ def plot(rows: list[dict], summary: list[dict], path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
-    for ax, metric, flag, label in ((axes[0], "iou", "front_iou", "IoU (all lumps' area, median)"),
-                                    (axes[1], "center_error_mm", "front_center", "centre error (mm, median)")):
+    panels = ((axes[0], "iou", "front_iou", "IoU (all lumps' area, median)"),
+              (axes[1], "center_error_mm", "front_center", "centre error (mm, median)"))
+    for ax, metric, flag, label in panels:
         _panel(ax, rows, summary, metric, flag)
         ax.set_xlabel("robot time per scan (s)")
         ax.set_ylabel(label)
@@ -85,8 +86,16 @@ def plot(rows: list[dict], summary: list[dict], path) -> None:
     fig.suptitle(f"speed for accuracy: {len(rows)} scans, {len({r['scene'] for r in rows})} scenes; "
                  "small dots = runs, big = setting medians, line = Pareto front")
     fig.tight_layout()
+    for ax, metric, flag, _ in panels:  # once the layout is final: labels are placed where they show
+        front = [s for s in summary if s[flag] and math.isfinite(s[metric])]
+        medians = [(s["robot_time_s"], s[metric]) for s in summary if math.isfinite(s[metric])]
+        label_front(ax, [(s["robot_time_s"], s[metric]) for s in front], [_setting_name(s) for s in front], medians)
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def _setting_name(line: dict) -> str:
+    return f"{line['strategy']}{' sliding' if line['palpation'] == 'sliding' else ''} {line['setting']}"
 
 
 def _panel(ax, rows, summary, metric: str, flag: str) -> None:
@@ -99,6 +108,49 @@ def _panel(ax, rows, summary, metric: str, flag: str) -> None:
                    edgecolors="black", label=f"{strategy} {palpation}" if mine else None)
     front = [s for s in summary if s[flag] and math.isfinite(s[metric])]
     ax.step([s["robot_time_s"] for s in front], [s[metric] for s in front], where="post", color="black", lw=1)
-    for s in front:
-        ax.annotate(f"{s['strategy']}{' sliding' if s['palpation'] == 'sliding' else ''} {s['setting']}", (s["robot_time_s"], s[metric]), fontsize=7,
-                    xytext=(4, 4), textcoords="offset points")
+
+
+# Where a label may sit beside its point (offset in points, horizontal alignment), in order of preference.
+LABEL_SPOTS = [((5, 4), "left"), ((5, -11), "left"), ((-5, 4), "right"), ((-5, -11), "right"),
+               ((5, 14), "left"), ((-5, 14), "right"), ((5, -21), "left"), ((-5, -21), "right"),
+               ((8, 26), "left"), ((-8, 26), "right"), ((8, -33), "left"), ((-8, -33), "right"),
+               ((30, -30), "left"), ((30, 30), "left"), ((-30, 30), "right"), ((-30, -30), "right"),
+               ((40, -50), "left"), ((-40, 50), "right")]
+LEADER_PT = 20  # a label set further out than this is joined to its point by a thin line
+
+
+def label_front(ax, points: list[tuple[float, float]], texts: list[str], avoid: list[tuple[float, float]]) -> None:
+    """Each front point's label at the spot beside it with the fewest clashes (the first with none): clashes
+    with labels placed before, with every setting's dot (`avoid`), and with the axes' edges. A front's points
+    lie close: one fixed offset put their labels on one another."""
+    from matplotlib.text import Text
+
+    renderer = ax.figure.canvas.get_renderer()
+    box = ax.get_window_extent(renderer)
+    dots = [ax.transData.transform(xy) for xy in avoid]
+    taken = []
+    for xy, text in zip(points, texts):
+        best = None
+        for (dx, dy), align in LABEL_SPOTS:
+            leader = {"arrowprops": {"arrowstyle": "-", "lw": 0.5, "color": "0.4"}} \
+                if max(abs(dx), abs(dy)) > LEADER_PT else {}
+            label = ax.annotate(text, xy, xytext=(dx, dy), textcoords="offset points", fontsize=7, ha=align,
+                                va="center" if leader else "baseline", **leader)
+            label.update_positions(renderer)
+            extent = Text.get_window_extent(label, renderer)  # the words only, not the leader line
+            clashes = _clashes(extent, taken, dots, box)
+            if best is None or clashes < best[0]:
+                if best is not None:
+                    best[1].remove()
+                best = (clashes, label, extent)
+            else:
+                label.remove()
+            if clashes == 0:
+                break
+        taken.append(best[2])
+
+
+def _clashes(extent, taken: list, dots: list, box) -> int:
+    outside = not (box.x0 <= extent.x0 and extent.x1 <= box.x1 and box.y0 <= extent.y0 and extent.y1 <= box.y1)
+    on_dots = sum(extent.x0 - 4 < x < extent.x1 + 4 and extent.y0 - 4 < y < extent.y1 + 4 for x, y in dots)
+    return 100 * outside + 10 * sum(extent.overlaps(other) for other in taken) + on_dots
