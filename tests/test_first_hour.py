@@ -150,3 +150,16 @@ def test_watch_with_no_events_on_its_endpoint_says_so_in_one_line_within_its_tim
     assert watch.returncode == 1 and time.monotonic() - started < 5.0
     assert watch.stdout == "" and watch.stderr == f"palpctl: nothing answered on {events} within 0.5 s " \
                                                   "(is --events the daemon's event endpoint?)\n"
+
+
+def test_probe_help_gives_units_and_frame_and_scan_help_names_the_default(capsys):
+    with pytest.raises(SystemExit):
+        palpctl.build_parser().parse_args(["probe", "--help"])
+    said = " ".join(capsys.readouterr().out.split())
+    assert "mm in the tissue frame: origin at the centre of the palpable rectangle" in said
+    assert "stiffness in N/mm" in said
+    from palpd.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["scan", "--help"])
+    assert "active (default)" in " ".join(capsys.readouterr().out.split())
