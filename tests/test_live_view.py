@@ -57,3 +57,14 @@ def test_a_fault_cleared_by_reset_leaves_the_faults_panel(view):
     assert view.state.snapshot()["faults"] == []
     view.event("status", status("scanning", 4))
     assert view.state.snapshot()["faults"] == []
+
+
+def test_only_the_learner_s_scans_name_a_next_probe_for_the_ring():
+    """The live view drew the learner's next-probe ring during raster scans: the estimate named one there too."""
+    from palpd.config import Settings
+    from palpd.daemon.learning import make_estimator
+
+    for strategy, named in (("active", True), ("raster", False), ("random", False)):
+        scan = {"strategy": strategy, "size_mm": [60.0, 60.0], "center_mm": [0.0, 0.0], "max_palpations": 9, "seed": 0}
+        estimator = make_estimator(Settings(), scan, (60.0, 60.0))
+        assert (estimator.estimate()["next_probe_mm"] is not None) == named, strategy

@@ -113,7 +113,7 @@ function drawLumps(f) {
 }
 
 function drawProbes(f, kScale) {
-  ctx.font = "10px sans-serif"; ctx.textBaseline = "bottom";
+  ctx.font = "bold 11px sans-serif"; ctx.textBaseline = "bottom";
   view.probes.forEach((probe, order) => {
     const failed = probe.stiffness_n_per_mm == null;
     const [x, y] = failed ? probe.target_xy_mm : probe.xy_mm;
@@ -126,6 +126,8 @@ function drawProbes(f, kScale) {
       ctx.strokeStyle = "#000"; ctx.lineWidth = 0.8; ctx.beginPath(); ctx.arc(X, Y, 4, 0, 2 * Math.PI);
       ctx.fill(); ctx.stroke();
     }
+    // a white halo: the number stays readable over the dark middle of a lump
+    ctx.lineWidth = 3; ctx.strokeStyle = "#fff"; ctx.strokeText(String(order + 1), X + 4, Y - 3);
     ctx.fillStyle = "#000"; ctx.fillText(String(order + 1), X + 4, Y - 3);
   });
   // the learner's next probe: the daemon names one only when the learner chooses the probes (an active scan)
