@@ -186,7 +186,8 @@ def test_palpctl_status_scan_estimate_and_plot(daemon, run_cli, tmp_path):
         return run_cli("--endpoint", daemon.commands, "--events", daemon.events, *args, module="palpd.palpctl")
 
     assert json.loads(palpctl("status").stdout)["state"] == "ready"
-    started = palpctl("scan", "start", "--strategy", "raster", "--max-palpations", "4", "--size-mm", "40", "40")  # an estimate to plot
+    # an estimate to plot
+    started = palpctl("scan", "start", "--strategy", "raster", "--max-palpations", "4", "--size-mm", "40", "40")
     assert started.returncode == 0, started.stderr
     daemon.wait_for(lambda s: s["state"] == "ready" and s["palpations"] == 4, what="scan end")
     assert json.loads(palpctl("estimate").stdout)["estimate"]["points"] == 4

@@ -64,7 +64,8 @@ def test_sigterm_aborts_a_palpation_that_outlasts_stop_timeout(tmp_path):
     try:
         daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
         # 5 mm at 0.02 mm/s: one palpation is 250 s of robot time, far more than any wall time here.
-        assert daemon.call("scan.start", {"strategy": "raster", "max_palpations": 4, "depth_mm": 5.0, "speed_mm_s": 0.02})["ok"]
+        slow = {"strategy": "raster", "max_palpations": 4, "depth_mm": 5.0, "speed_mm_s": 0.02}
+        assert daemon.call("scan.start", slow)["ok"]
         wait_until_palpating(tmp_path / "state" / "sessions")
         signalled = time.monotonic()
         daemon.signal(signal.SIGTERM)
@@ -136,7 +137,8 @@ def test_palpctl_watch_probe_bias_estop_reset_and_a_probe_survives_kill_9(daemon
 
         # an e-stop mid-scan: `scan start --wait` ends saying what the fault was, not only its code
         waiting = subprocess.Popen([sys.executable, "-m", "palpd.palpctl", *endpoints, "scan", "start", "--wait",
-                                    "--strategy", "raster", "--max-palpations", "4"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                    "--strategy", "raster", "--max-palpations", "4"],
+                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                    text=True, env=daemon.env)
         try:
             lines.wait_for("status: scanning")

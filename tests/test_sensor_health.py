@@ -92,7 +92,8 @@ def test_any_drift_up_to_1_n_per_s_is_corrected_or_stopped_and_never_pushes_past
 def test_a_scene_faults_table_drives_palpd_scan_end_to_end(tmp_path, run_cli):
     scene = tmp_path / "drifting.toml"
     scene.write_text(PAPER_TEXT + "\n[faults]\nsensor_drift = { at_s = 0.5, value = -0.1 }\n")
-    result = run_cli("scan", "--scene", scene, "--strategy", "raster", "--max-palpations", "4", "--report", "r.json", "--quiet")
+    result = run_cli("scan", "--scene", scene, "--strategy", "raster", "--max-palpations", "4", "--report", "r.json",
+                     "--quiet")
     assert result.returncode == 0, result.stderr
     report = json.loads((tmp_path / "r.json").read_text())
     assert report["sensor"]["retares"] >= 3 and report["faults"] == []

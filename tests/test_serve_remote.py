@@ -79,5 +79,6 @@ def test_a_frozen_net_ft_box_from_palpd_simulate_fault_stops_a_remote_scan(tmp_p
     for endpoints in serve_simulator(tmp_path, "--bridge", "tcp://127.0.0.1:0", "--netft", "127.0.0.1:0",
                                      "--fault", "sensor_frozen@0"):
         config = bench_config(tmp_path / "frozen.toml", endpoints)
-        result = run_cli("scan", "--scene", SCENES / "paper.toml", "--config", config, "--strategy", "raster", "--max-palpations", "1")
+        result = run_cli("scan", "--scene", SCENES / "paper.toml", "--config", config, "--strategy", "raster",
+                         "--max-palpations", "1")
     assert result.returncode == 1 and "(sensor_frozen)" in result.stderr, result.stderr

@@ -11,7 +11,9 @@ def add_parser(subparsers):
     scan = subparsers.add_parser("scan", help="palpate a scene end to end and estimate its lumps")
     scan.add_argument("--scene", required=True, metavar="FILE|NAME",
                       help="scene file (TOML) or the name of a shipped scene (`palpd scenes`)")
-    scan.add_argument("--strategy", choices=["active", "raster", "random"], help="where to palpate: active (default) asks the online learner where it is least sure; raster, a square grid; random, uniform points")
+    scan.add_argument("--strategy", choices=["active", "raster", "random"],
+                      help="where to palpate: active (default) asks the online learner where it is least sure; "
+                           "raster, a square grid; random, uniform points")
     scan.add_argument("--palpation", choices=["discrete", "sliding"],
                       help="press point by point, or slide along paths in contact (default discrete)")
     scan.add_argument("--max-palpations", type=int, metavar="N", help="budget (sliding: of paths)")

@@ -63,8 +63,8 @@ class LearnerEstimator:
     def estimate(self) -> dict:
         """Fields of the bus `estimate` event."""
         return {"points": len(self.k_n_per_mm), "lumps": [self._shifted(lump.as_dict()) for lump in self.learner.lumps()],
-                "next_probe_mm": self.next_probe() if self.plans else None, "ambiguous_area_mm2": self.learner.ambiguous_area_mm2(),
-                "model": self.learner.model()}
+                "next_probe_mm": self.next_probe() if self.plans else None,
+                "ambiguous_area_mm2": self.learner.ambiguous_area_mm2(), "model": self.learner.model()}
 
     def posterior_map(self, max_cells_per_side: int = MAP_CELLS_PER_SIDE) -> dict | None:
         """The learner's posterior on (at most) a max × max subgrid, tissue frame: reply.estimate.get's `map`,
