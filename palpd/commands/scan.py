@@ -4,7 +4,6 @@ from __future__ import annotations
 import sys
 
 from palpd.errors import EXIT_FAILURE, EXIT_UNDETERMINED
-from palpd.strategies import raster_note
 
 
 def add_parser(subparsers):
@@ -102,6 +101,8 @@ def run(args) -> int:
 def _note_raster(settings, budget: int | None) -> None:
     """A budget a square grid cannot use whole is said, even with --quiet: 3 palpating one spot surprises."""
     if settings.scan.strategy == "raster" and settings.palpation.mode == "discrete":
+        from palpd.strategies import raster_note  # here: building the parser must not import numpy
+
         note = raster_note(budget or settings.scan.max_palpations)
         if note:
             print(f"palpd: {note}", file=sys.stderr, flush=True)
