@@ -9,7 +9,9 @@ OUT := out
 $(BIN)/palpd: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+	# setuptools notes every editable install of a mapped layout (config/ ships as palpd.share) at length;
+	# informational only, so hidden: anything else it says about the packaging still shows
+	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@
 
 run: $(BIN)/palpd
