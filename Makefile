@@ -6,11 +6,11 @@ OUT := out
 
 .PHONY: run test reproduce clean
 
+# setuptools notes every editable install of a mapped layout (config/ ships as palpd.share) at length:
+# informational only, so hidden; anything else it says about the packaging still shows.
 $(BIN)/palpd: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	# setuptools notes every editable install of a mapped layout (config/ ships as palpd.share) at length;
-	# informational only, so hidden: anything else it says about the packaging still shows
 	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $@
 
