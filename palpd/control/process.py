@@ -163,7 +163,8 @@ class ServoProcess:
         return {"fault": servo.fault, "last_tick": servo.last_tick, "max_contact_force_n": servo.max_contact_force_n,
                 "motors_on": servo.motors_on, "bias_n": servo.forces.bias_n, "sensor": servo.health.summary(),
                 "amplifiers_on": world.amplifiers_on if world is not None else None,
-                "true_max_contact_force_n": servo.true_max_contact_force_n}
+                "true_max_contact_force_n": servo.true_max_contact_force_n,
+                "true_max_indentation_mm": servo.true_max_indentation_mm}
 
 
 def _exit_on_signal(signum, frame) -> None:

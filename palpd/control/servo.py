@@ -95,6 +95,11 @@ class ServoLoop(Sensing, Stopping):
         """In simulation, the world's own peak contact force since start(); None on hardware."""
         return None if self.truth is None else self.truth.max_contact_force_n
 
+    @property
+    def true_max_indentation_mm(self) -> float | None:
+        """In simulation, the tip's deepest position below the true surface since start(); None on hardware."""
+        return None if self.truth is None else self.truth.max_indentation_mm
+
     def start(self, home: bool = True) -> None:
         """Amplifiers on, then (home=True) the arm back to its rest pose from wherever it lies, supervised:
         straight up off the tissue first (after a category-0 stop it may have fallen onto it). Raises ScanFault
