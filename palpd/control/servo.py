@@ -81,6 +81,7 @@ class ServoLoop(Sensing, Stopping):
         self._task_target: Vec3 | None = None  # the task's own last target (without the offset)
         self._sensor_lost: str | None = None
         self._last_sample: ForceSample | None = None
+        self.surface = None  # where the tissue surface is (palpd.control.surface.SurfaceGuard): tasks keep above its floor
 
     @property
     def ticks(self) -> int:
@@ -118,6 +119,8 @@ class ServoLoop(Sensing, Stopping):
         # they made a loop_stall at start().
         self._lost_s = 0.0
         self.supervisor.reset()  # the arm may have been moved by hand while the motors were off
+        if self.surface is not None:
+            self.surface.forget()  # a new scan: the tissue may have been moved
         if self.truth is not None:
             self.truth.reset_peak()
         if home:
@@ -162,6 +165,8 @@ class ServoLoop(Sensing, Stopping):
                     task.jumped, self._task_target = False, None
                 self._command(tick, target)
                 self._end_tick(tick, started)
+            if self.surface is not None:
+                self.surface.learn(task)
         except DriverError as exc:
             self._link_lost(exc)
         finally:
