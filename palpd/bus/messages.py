@@ -253,6 +253,9 @@ class ScanStartArgs(_Args):
     """Press point by point, or slide along paths in contact (max_palpations then counts paths); null: palpation.mode."""
     resume: bool = False
     """Continue the unfinished session instead of starting a new one (other arguments are ignored)."""
+    discard: bool = False
+    """Abandon the unfinished session and start a new one; without resume or discard, a scan.start over an
+    unfinished session (stopped, faulted or cut by a crash) is refused with `unfinished_session`."""
 
 
 class ProbeAtArgs(_Args):

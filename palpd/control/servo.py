@@ -32,6 +32,7 @@ Vec3 = tuple[float, float, float]
 FAULT_HISTORY_TICKS = 20  # samples kept with a fault record
 NO_OFFSET = (0.0, 0.0, 0.0)
 NO_CURRENT = (0.0, 0.0, 0.0)
+JUMP_ACCEL_MM_S2 = 10000.0  # a path's velocity changing faster than this is a jump (a new task, a release), not motion
 
 
 class ServoLoop(Sensing, Stopping):
@@ -79,6 +80,8 @@ class ServoLoop(Sensing, Stopping):
         self.drift_after_s = drift_after_s if drift_after_s is not None else 2.5 * self.period_s
         self._velocity_error: Vec3 = NO_OFFSET
         self._task_target: Vec3 | None = None  # the task's own last target (without the offset)
+        self._path_v: Vec3 = NO_OFFSET
+        self._path_accel: Vec3 = NO_OFFSET  # how the path's velocity changed at the last command (the arm's inertia)
         self._sensor_lost: str | None = None
         self._last_sample: ForceSample | None = None
         self.surface = None  # where the tissue surface is (palpd.control.surface.SurfaceGuard): tasks keep above its floor
@@ -230,6 +233,7 @@ class ServoLoop(Sensing, Stopping):
     def _command(self, tick: Tick, target: Vec3) -> None:
         """Write the currents that take the tip to the task's target, rejoining the path after a late tick."""
         velocity = self._path_velocity(target)
+        self._path_accel = self._path_acceleration(velocity)
         self._hold_mm = target
         rejoin = self.rejoin
         if tick.gap_s > self.drift_after_s and self._error is not None:
@@ -254,6 +258,12 @@ class ServoLoop(Sensing, Stopping):
         rate = 1.0 / self.period_s
         v = ((target[0] - previous[0]) * rate, (target[1] - previous[1]) * rate, (target[2] - previous[2]) * rate)
         return v if v[0] * v[0] + v[1] * v[1] + v[2] * v[2] <= self._max_setpoint_speed_sq else NO_OFFSET
+
+    def _path_acceleration(self, velocity: Vec3) -> Vec3:
+        previous, self._path_v = self._path_v, velocity
+        rate = 1.0 / self.period_s
+        a = ((velocity[0] - previous[0]) * rate, (velocity[1] - previous[1]) * rate, (velocity[2] - previous[2]) * rate)
+        return a if a[0] * a[0] + a[1] * a[1] + a[2] * a[2] <= JUMP_ACCEL_MM_S2 ** 2 else NO_OFFSET
 
     def _end_tick(self, tick: Tick, started: float) -> None:
         if self.tick_hook is not None:
