@@ -191,3 +191,27 @@ def test_palpctl_status_scan_estimate_and_plot(daemon, run_cli, tmp_path):
     assert refused.returncode == 1 and "invalid_state" in refused.stderr
     assert palpctl("plot", "map.png").returncode == 0
     assert (tmp_path / "map.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_scan_stop_leaves_a_resumable_session_and_a_new_scan_over_it_needs_resume_or_discard(daemon):
+    """Issue 51: a session stopped with scan.stop could not be resumed, and a plain scan.start over an unfinished
+    session threw it away with only a log line."""
+    daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
+    subscriber = daemon.subscriber("stiffness")
+    first = daemon.call("scan.start", {"max_palpations": 81})
+    assert first["ok"] and receive(subscriber) is not None  # mid-scan
+    assert daemon.call("scan.stop")["ok"]
+    stopped = daemon.wait_for(lambda s: s["state"] == "ready", what="ready after the stop")
+    assert stopped["resumable"] and stopped["session"] == first["session"] and 1 <= stopped["palpations"] < 81
+    refused = daemon.call("scan.start", {"max_palpations": 4})
+    assert not refused["ok"] and refused["error"]["code"] == "unfinished_session", refused
+    assert first["session"] in refused["error"]["message"] and "resume" in refused["error"]["message"]
+    assert not daemon.call("scan.start", {"resume": True, "discard": True})["ok"]
+    resumed = daemon.call("scan.start", {"resume": True})
+    assert resumed["ok"] and resumed["session"] == first["session"] and resumed["already_done"] == stopped["palpations"]
+    assert daemon.call("scan.stop")["ok"]
+    daemon.wait_for(lambda s: s["state"] == "ready", what="ready after the second stop")
+    fresh = daemon.call("scan.start", {"max_palpations": 2, "discard": True})
+    assert fresh["ok"] and fresh["discarded"] == first["session"] and fresh["session"] != first["session"]
+    meta = json.loads((daemon.state_dir / "sessions" / first["session"] / "session.json").read_text())
+    assert meta["status"] == "abandoned"
