@@ -220,3 +220,18 @@ def test_a_rest_pose_not_clear_of_the_tissue_is_refused_at_start_up():
     scene = Scene(name="high", placement={"origin_mm": (0.0, 2.0, 0.0)})  # the tissue 2 mm below home
     with pytest.raises(ConfigError, match="rest pose"):
         open_simulated_bench(Settings(), scene)
+
+
+def test_a_reset_with_the_bridge_gone_names_the_lost_link_not_the_loop():
+    """Issue 51: after the robot link dropped, the reset's homing (start: amplifiers on) raised the driver's
+    error out of the servo loop, and the daemon met it as servo_lost ("no heartbeat for 5 s")."""
+    bench = open_simulated_bench(Settings(), Scene(name="t", tissue={"stiffness_n_per_mm": 0.12}))
+    servo = bench.servo
+    servo.start()
+    servo.robot.transport.unplugged = True  # the bridge's cable comes out
+    with pytest.raises(ScanFault, match="robot_link"):
+        servo.run(MoveTo((0.0, 0.0, 10.0), 80.0, 2000.0))
+    servo.reset()  # what the daemon's reset does, then its homing starts the amplifiers
+    with pytest.raises(ScanFault, match="robot_link: robot link lost: .*unplugged"):
+        servo.start()
+    assert servo.fault.code == "robot_link" and servo.fault.category == 0 and not servo.motors_on

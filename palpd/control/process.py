@@ -105,12 +105,16 @@ class ServoProcess:
             # robot time differ by milliseconds from run to run.
             while not self.conn.poll(IDLE_BEAT_S):
                 self.ring.beat(None, self.servo.timing.ticks, self.servo.timing.overruns)
+                self.conn.poll(self.servo.period_s)  # a link that fails at once must not spin the loop
             return self.conn.recv()
         while not self.conn.poll(0):
             try:
                 self.servo.idle_tick()
-            except ScanFault:
-                pass  # latched, motors off; the parent learns it with its next request
+            except ScanFault:  # latched, motors off; the parent learns it with its next request
+                # The loop is alive even with no robot to tick with (a lost link): its heartbeat says so, or
+                # the parent would take it for hung (servo_lost, "no heartbeat") instead of naming the link.
+                self.ring.beat(None, self.servo.timing.ticks, self.servo.timing.overruns)
+                self.conn.poll(self.servo.period_s)  # a link that fails at once must not spin the loop
         return self.conn.recv()
 
     def _handle(self, command: str, *args) -> bool:

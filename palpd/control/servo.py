@@ -108,8 +108,12 @@ class ServoLoop(Sensing, Stopping):
         """Amplifiers on, then (home=True) the arm back to its rest pose from wherever it lies, supervised:
         straight up off the tissue first (after a category-0 stop it may have fallen onto it). Raises ScanFault
         (motors off) if safety stops that. The first tick comes a period after the enable and reads its reply
-        (one exchange a tick). home=False is for a person holding the arm (a manual session)."""
-        self.robot.enable()
+        (one exchange a tick). home=False is for a person holding the arm (a manual session). A bridge that
+        does not answer the enable is a robot_link fault (ScanFault), as it is mid-task."""
+        try:
+            self.robot.enable()
+        except DriverError as exc:
+            self._link_lost(exc)
         self.motors_on = True
         self._setpoint, self._hold_mm, self._error, self._task_target = None, None, None, None
         self.rejoin.reset()
