@@ -188,4 +188,4 @@ def job_ended(sup, fault: dict | None) -> None:
         sup.set_state("ready", "scan finished" if getattr(job, "finished", False) else
                       "servo process restarted" if isinstance(job, RestartServoJob) else "")
     if isinstance(job, ScanJob):
-        sup.close_recording()  # after the last status and fault, so the recording has them
+        sup.end_recording(fault)  # after the last status and fault, so the recording has them
