@@ -97,3 +97,28 @@ def test_a_scene_faults_table_drives_palpd_scan_end_to_end(tmp_path, run_cli):
     scene.write_text(PAPER_TEXT + "\n[faults]\nsensor_frozen = { at_s = 1.0 }\n")
     frozen = run_cli("scan", "--scene", scene, "--max-palpations", "4", "--quiet")
     assert frozen.returncode == 1 and "(sensor_frozen)" in frozen.stderr
+
+
+STIFF = load_scene_named("stiff-tissue")
+
+
+@hsettings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(stiff=st.booleans(), rate_n_per_s=st.sampled_from([-1.0, 1.0]).flatmap(
+           lambda sign: st.floats(2.0, 25.0).map(lambda v: sign * v)),
+       at_s=st.floats(0.5, 6.0))
+def test_a_zero_drifting_at_any_moment_never_lets_the_tissue_take_the_cap_or_the_probe_go_deeper_than_asked(
+        stiff, rate_n_per_s, at_s):
+    """Issue 51: the drift begins anywhere in a scan (travelling, approaching, mid-press, retracting; a scan of
+    4 palpations lasts about 8 s of robot time), at 2 to 25 N/s either way. The simulator's own truth: the tissue
+    never took more than the cap, the tip never went deeper than depth_mm + 1 mm, and the first fault names
+    the sensor (not the force cap, nor the tracking)."""
+    scene = (STIFF if stiff else PAPER).model_copy(
+        update={"faults": {"sensor_drift": FaultAt(at_s=at_s, value=rate_n_per_s)}})
+    settings = Settings()
+    bench = open_simulated_bench(settings, scene)
+    report = run_scan(bench, settings, plan("raster", scene.tissue.size_mm, 4, 0))
+    truth = report["truth"]
+    assert truth["max_contact_force_n"] <= settings.safety.force_cap_n, truth
+    assert truth["max_indentation_mm"] <= settings.palpation.depth_mm + 1.0, truth
+    if report["faults"] or at_s < report["robot_time_s"] - 1.0:
+        assert report["faults"][0]["code"] == "sensor_drift", report["faults"][0]
