@@ -23,7 +23,7 @@ def one_run(scene_name: str, rate: float, onset: float, settings) -> dict:
     faults = report["faults"]
     return {"scene": scene_name, "rate": rate, "onset": onset, "force": report["truth"]["max_contact_force_n"],
             "depth": report["truth"]["max_indentation_mm"], "fault": faults[0]["code"] if faults else "-",
-            "palpations": report["palpations"]}
+            "fault_t": faults[0]["t_s"] if faults else None, "palpations": report["palpations"]}
 
 
 def main() -> None:
@@ -34,8 +34,9 @@ def main() -> None:
     args = parser.parse_args()
     settings = scan_settings(strategy="raster", max_palpations=16)
     cap, limit = settings.safety.force_cap_n, settings.palpation.depth_mm + 1.0
-    print(f"| scene | drift N/s | onset s | true peak N (cap {cap}) | deepest mm (limit {limit}) | first fault | palpations | ok |")
-    print("|---|---|---|---|---|---|---|---|")
+    print(f"| scene | drift N/s | onset s | true peak N (cap {cap}) | deepest mm (limit {limit}) | first fault "
+          "| after onset, s (drift then, N) | palpations | ok |")
+    print("|---|---|---|---|---|---|---|---|---|")
     bad = 0
     for scene in args.scenes:
         for rate in args.rates:
@@ -43,8 +44,10 @@ def main() -> None:
                 r = one_run(scene, rate, onset, settings)
                 ok = r["force"] <= cap and r["depth"] <= limit and r["fault"] in SENSOR_FAULTS
                 bad += not ok
+                late = "-" if r["fault_t"] is None else \
+                    f"{r['fault_t'] - onset:.3f} ({rate * (r['fault_t'] - onset):+.2f})"
                 print(f"| {scene} | {rate:+g} | {onset:g} | {r['force']:.3f} | {r['depth']:.2f} | {r['fault']} | "
-                      f"{r['palpations']} | {'yes' if ok else 'NO'} |", flush=True)
+                      f"{late} | {r['palpations']} | {'yes' if ok else 'NO'} |", flush=True)
     print(f"\n{bad} of the runs outside the bounds")
 
 

@@ -288,8 +288,8 @@ class ErrorBody(BaseModel):
     """What went wrong."""
 
     model_config = SENT
-    code: Literal["bad_json", "bad_request", "unknown_command", "bad_args", "invalid_state", "forbidden",
-                  "unavailable", "internal"]
+    code: Literal["bad_json", "bad_request", "unknown_command", "bad_args", "invalid_state", "unfinished_session",
+                  "forbidden", "unavailable", "internal"]
     """Machine-readable reason."""
     message: str
     """One line for a person."""
