@@ -219,6 +219,8 @@ class Supervisor:
         self.samples.drain(self.bench.servo, self.recording)  # the last ticks, before the ring goes away
         self.bench.servo.close()  # the servo process quits with its motors off
         self._drain_worker()
+        if self._settling_since is not None:  # the servo process is gone: nothing more moves that it could record
+            self.close_recording()
         self.set_state("stopped", "terminated")
         self.close_recording()
         self.close()
