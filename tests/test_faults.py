@@ -235,3 +235,32 @@ def test_a_reset_with_the_bridge_gone_names_the_lost_link_not_the_loop():
     with pytest.raises(ScanFault, match="robot_link: robot link lost: .*unplugged"):
         servo.start()
     assert servo.fault.code == "robot_link" and servo.fault.category == 0 and not servo.motors_on
+
+
+def test_a_push_into_soft_tissue_stops_at_the_depth_bound_whatever_the_force_reads():
+    """Issue 51: depth is bounded by position. A setpoint run deep into 0.12 N/mm tissue never reads near the cap
+    (0.6 N at 5 mm); the tip stops at depth_mm plus the margin below the surface, as an `indentation` fault."""
+    settings = Settings()
+    bench = open_simulated_bench(settings, Scene(name="soft", tissue={"stiffness_n_per_mm": 0.12}))
+    bench.servo.start()
+    bench.servo.run(MoveTo((0.0, 0.0, 2.0), 80.0, 2000.0))
+    with pytest.raises(ScanFault, match="indentation: tip 4.7"):
+        bench.servo.run(MoveTo((0.0, 0.0, -15.0), 10.0, 2000.0))
+    assert bench.servo.fault.category == 1 and "parked" in bench.servo.fault.stop
+    assert bench.servo.max_contact_force_n < 1.0  # the force cap would never have stopped it
+    assert bench.world.max_indentation_mm <= settings.palpation.depth_mm + 1.0
+
+
+def test_the_surface_is_refined_by_finished_palpations_near_them_only():
+    from palpd.control.palpation import PalpationRecord
+    from palpd.control.surface import SurfaceGuard
+
+    settings = Settings()
+    guard = SurfaceGuard(settings.palpation, settings.safety)
+    limit = settings.palpation.depth_mm + settings.safety.indentation_margin_mm
+    assert guard.floor_z_mm((0.0, 0.0, 0.0)) == -limit  # the registered surface, z = 0
+    guard.learn(type("Done", (), {"record": PalpationRecord((10.0, 0.0), contact_z_mm=-1.5)})())
+    assert guard.floor_z_mm((12.0, 0.0, 0.0)) == -1.5 - limit  # near a contact point: that surface
+    assert guard.floor_z_mm((-10.0, 0.0, 0.0)) == -limit  # far from it: the registration
+    guard.forget()
+    assert guard.floor_z_mm((12.0, 0.0, 0.0)) == -limit
