@@ -102,7 +102,7 @@ def test_a_scene_faults_table_drives_palpd_scan_end_to_end(tmp_path, run_cli):
 STIFF = load_scene_named("stiff-tissue")
 
 
-@hsettings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@hsettings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(stiff=st.booleans(), rate_n_per_s=st.sampled_from([-1.0, 1.0]).flatmap(
            lambda sign: st.floats(2.0, 25.0).map(lambda v: sign * v)),
        at_s=st.floats(0.5, 6.0))
