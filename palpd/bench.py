@@ -18,6 +18,7 @@ from palpd.control.health import SensorHealth
 from palpd.control.limits import NANO17_FORCE_RANGE_N, refuse_unsafe_configuration, rest_pose_mm
 from palpd.control.safety import SafetySupervisor
 from palpd.control.servo import ServoLoop
+from palpd.control.surface import SurfaceGuard
 from palpd.errors import ConfigError
 
 
@@ -122,6 +123,8 @@ def _assemble(settings, robot, sensor, clock, world=None) -> Bench:
     max_hold_s = settings.robot.hold_after_s + settings.robot.hold_ramp_s / 2
     supervisor = SafetySupervisor(settings.safety, settings.tissue.size_mm, rest_pose_mm(frame), period_s)
     health = SensorHealth(settings.safety, forces, settings.palpation.clearance_mm, period_s)
+    surface = SurfaceGuard(settings.palpation, settings.safety)
+    supervisor.add_monitor(surface)  # each monitor goes first among them: the sensor's own checks name the cause
     supervisor.add_monitor(health)
     servo = ServoLoop(
         robot, sensor, clock, frame,
@@ -133,4 +136,5 @@ def _assemble(settings, robot, sensor, clock, world=None) -> Bench:
         drift_after_s=settings.robot.hold_after_s + settings.robot.hold_ramp_s,
     )
     servo.health = health  # its summary (re-tares, largest drift) goes into the scan report
+    servo.surface = surface
     return Bench(servo, clock, frame, settings.tissue.size_mm, world)

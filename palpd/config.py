@@ -156,6 +156,14 @@ class SafetySettings(_Section):
     drift_window_s: Positive = 0.05
     drift_retare_n: Positive = 0.02
     drift_fault_n: Positive = 0.5
+    # While the motors push (in contact or not), the force read against the force the motor currents put on the
+    # tip (palpd.control.health): further apart than force_mismatch_n for force_mismatch_window_s, the sensor
+    # is wrong (a drifting zero reads the tissue lighter or heavier than the arm feels it).
+    force_mismatch_n: Positive = 0.5
+    force_mismatch_window_s: Positive = 0.02
+    # Never deeper than the palpation's depth plus this below the tissue surface, whatever the force reads
+    # (palpd.control.surface).
+    indentation_margin_mm: Positive = 0.75
 
 
 class ScanSettings(_Section):

@@ -45,7 +45,10 @@ def build_parser() -> argparse.ArgumentParser:
     scan.add_argument("--palpation", choices=["discrete", "sliding"],
                       help="press point by point, or slide along paths (--max-palpations then counts paths); "
                            "default: the daemon's palpation.mode")
-    scan.add_argument("--resume", action="store_true", help="continue the unfinished session")
+    resume = scan.add_mutually_exclusive_group()
+    resume.add_argument("--resume", action="store_true", help="continue the unfinished session")
+    resume.add_argument("--discard", action="store_true",
+                        help="abandon the unfinished session and start anew (without either, palpd refuses)")
     scan.add_argument("--wait", action="store_true", help="return once the scan has ended (exit 1 on a fault)")
     commands.add_parser("estop", help="stop the robot now (latched)")
     commands.add_parser("reset", help="clear a latched fault")
@@ -67,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
 def scan_options(args) -> dict:
     names = ("max_palpations", "seed", "center_mm", "size_mm", "depth_mm", "speed_mm_s", "palpation")
     options = {name: getattr(args, name) for name in names if getattr(args, name) is not None}
-    return options | ({"resume": True} if args.resume else {})
+    return options | ({"resume": True} if args.resume else {}) | ({"discard": True} if args.discard else {})
 
 
 def run(client, args) -> int:

@@ -219,5 +219,6 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
         body["paths_lifted_at_force_limit"] = lifted
     true_peak_n = servo.true_max_contact_force_n
     if true_peak_n is not None:  # in simulation: what the tissue really took, at every physics step
-        body["truth"] = {"max_contact_force_n": round(true_peak_n, 4)}
+        body["truth"] = {"max_contact_force_n": round(true_peak_n, 4),
+                         "max_indentation_mm": round(servo.true_max_indentation_mm, 3)}
     return body

@@ -78,6 +78,11 @@ BOUNDS: dict[str, Bound] = {
     "safety.drift_window_s": Bound(0.5, "s", "older readings describe an older zero"),
     "safety.drift_retare_n": Bound(0.5, "N", "a zero further off than that is no drift to correct quietly"),
     "safety.drift_fault_n": Bound(2.0, "N", "a zero that moved more between two palpations is a broken sensor"),
+    "safety.force_mismatch_n": Bound(2.0, "N", "a sensor further off than that from the motors' push lets the tissue "
+                                               "take the cap unseen"),
+    "safety.force_mismatch_window_s": Bound(0.1, "s", "a drift of 20 N/s is 2 N off in that time"),
+    "safety.indentation_margin_mm": Bound(3.0, "mm", "deeper than that beyond the palpation depth is no longer "
+                                                     "the press that was asked for"),
     "daemon.stop_timeout_s": Bound(15.0, "s", "systemd kills palpd after TimeoutStopSec (20 s in palpd.service), "
                                               "mid-palpation"),
     "daemon.status_interval_s": Bound(1.0, "s", "a subscriber joining at any time must have the status within "

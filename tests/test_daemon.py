@@ -1,8 +1,10 @@
 """`palpd serve` as a real process, driven by clients that use only pyzmq and JSON."""
 import json
+import math
 import signal
 import subprocess
 import sys
+import time
 
 import pytest
 import zmq
@@ -211,3 +213,60 @@ def test_palpctl_status_scan_estimate_and_plot(daemon, run_cli, tmp_path):
     # closed (its summary written: an open one has none) once the probe ended, holding the whole palpation
     samples = [p for topic, p, _ in read_closed(recording)["messages"] if topic == "samples"]
     assert samples and samples[-1]["t"] >= entry["t_end_s"]
+
+
+def test_scan_stop_leaves_a_resumable_session_and_a_new_scan_over_it_needs_resume_or_discard(daemon):
+    """Issue 51: a session stopped with scan.stop could not be resumed, and a plain scan.start over an unfinished
+    session threw it away with only a log line."""
+    daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
+    subscriber = daemon.subscriber("stiffness")
+    first = daemon.call("scan.start", {"max_palpations": 81})
+    assert first["ok"] and receive(subscriber) is not None  # mid-scan
+    assert daemon.call("scan.stop")["ok"]
+    stopped = daemon.wait_for(lambda s: s["state"] == "ready", what="ready after the stop")
+    assert stopped["resumable"] and stopped["session"] == first["session"] and 1 <= stopped["palpations"] < 81
+    refused = daemon.call("scan.start", {"max_palpations": 4})
+    assert not refused["ok"] and refused["error"]["code"] == "unfinished_session", refused
+    assert first["session"] in refused["error"]["message"] and "resume" in refused["error"]["message"]
+    assert not daemon.call("scan.start", {"resume": True, "discard": True})["ok"]
+    resumed = daemon.call("scan.start", {"resume": True})
+    assert resumed["ok"] and resumed["session"] == first["session"] and resumed["already_done"] == stopped["palpations"]
+    assert daemon.call("scan.stop")["ok"]
+    daemon.wait_for(lambda s: s["state"] == "ready", what="ready after the second stop")
+    fresh = daemon.call("scan.start", {"max_palpations": 2, "discard": True})
+    assert fresh["ok"] and fresh["discarded"] == first["session"] and fresh["session"] != first["session"]
+    meta = json.loads((daemon.state_dir / "sessions" / first["session"] / "session.json").read_text())
+    assert meta["status"] == "abandoned"
+
+
+def test_after_an_estop_mid_press_the_recording_goes_on_until_the_arm_is_at_rest(tmp_path):
+    """Issue 51: the recording stopped within 9 ms of an e-stop with the probe still in the tissue, so nothing
+    recorded where the unpowered arm came to rest. On the wall clock, where the servo ticks between tasks."""
+    from test_daemon_sliding import samples_of
+
+    daemon = Daemon(tmp_path, realtime=True)
+    try:
+        daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
+        assert daemon.call("scan.start", {"max_palpations": 4})["ok"]
+        session = daemon.state_dir / "sessions" / daemon.call("status")["session"]
+        recording = session / "recording-1.mcap"
+        wait_until(lambda: any(p["tip_mm"][2] < -1.0 for p in samples_of(recording)), "a press under way")
+        assert daemon.call("estop")["ok"]
+        daemon.wait_for(lambda s: s["state"] == "fault", what="fault")
+        wait_until(lambda: recording.read_bytes().endswith(b"\x89MCAP0\r\n"), "the recording closed")
+    finally:
+        daemon.close()
+    samples = samples_of(recording)
+    (fault_t,) = [p["t"] for t, p in read_messages(recording) if t == "fault"]
+    last = samples[-200:]
+    assert last[-1]["t"] - fault_t >= 0.2  # recorded on after the stop...
+    assert all(math.dist(p["tip_mm"], last[-1]["tip_mm"]) <= 0.05 for p in last)  # ...until the arm lay still
+
+
+def wait_until(condition, what: str, timeout_s: float = 30.0) -> None:
+    give_up = time.monotonic() + timeout_s
+    while time.monotonic() < give_up:
+        if condition():
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"no {what} within {timeout_s} s")

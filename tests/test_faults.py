@@ -195,7 +195,7 @@ def test_every_fault_code_has_its_stop_category():
     assert CATEGORY_0 == {"estop", "amplifier_fault", "watchdog", "over_temperature", "encoder_jump", "robot_link"}
     for code in ("force_cap", "rigid_contact", "tracking_error", "loop_stall", "stale_sample", "invalid_sample",
                  "saturated", "joint_limit", "workspace", "speed", "task_timeout", "sensor_link", "servo_lost",
-                 "sensor_frozen", "sensor_drift"):
+                 "sensor_frozen", "sensor_drift", "indentation"):
         assert stop_category(code) == 1
 
 
@@ -220,3 +220,47 @@ def test_a_rest_pose_not_clear_of_the_tissue_is_refused_at_start_up():
     scene = Scene(name="high", placement={"origin_mm": (0.0, 2.0, 0.0)})  # the tissue 2 mm below home
     with pytest.raises(ConfigError, match="rest pose"):
         open_simulated_bench(Settings(), scene)
+
+
+def test_a_reset_with_the_bridge_gone_names_the_lost_link_not_the_loop():
+    """Issue 51: after the robot link dropped, the reset's homing (start: amplifiers on) raised the driver's
+    error out of the servo loop, and the daemon met it as servo_lost ("no heartbeat for 5 s")."""
+    bench = open_simulated_bench(Settings(), Scene(name="t", tissue={"stiffness_n_per_mm": 0.12}))
+    servo = bench.servo
+    servo.start()
+    servo.robot.transport.unplugged = True  # the bridge's cable comes out
+    with pytest.raises(ScanFault, match="robot_link"):
+        servo.run(MoveTo((0.0, 0.0, 10.0), 80.0, 2000.0))
+    servo.reset()  # what the daemon's reset does, then its homing starts the amplifiers
+    with pytest.raises(ScanFault, match="robot_link: robot link lost: .*unplugged"):
+        servo.start()
+    assert servo.fault.code == "robot_link" and servo.fault.category == 0 and not servo.motors_on
+
+
+def test_a_push_into_soft_tissue_stops_at_the_depth_bound_whatever_the_force_reads():
+    """Issue 51: depth is bounded by position. A setpoint run deep into 0.12 N/mm tissue never reads near the cap
+    (0.6 N at 5 mm); the tip stops at depth_mm plus the margin below the surface, as an `indentation` fault."""
+    settings = Settings()
+    bench = open_simulated_bench(settings, Scene(name="soft", tissue={"stiffness_n_per_mm": 0.12}))
+    bench.servo.start()
+    bench.servo.run(MoveTo((0.0, 0.0, 2.0), 80.0, 2000.0))
+    with pytest.raises(ScanFault, match="indentation: tip 4.7"):
+        bench.servo.run(MoveTo((0.0, 0.0, -15.0), 10.0, 2000.0))
+    assert bench.servo.fault.category == 1 and "parked" in bench.servo.fault.stop
+    assert bench.servo.max_contact_force_n < 1.0  # the force cap would never have stopped it
+    assert bench.world.max_indentation_mm <= settings.palpation.depth_mm + 1.0
+
+
+def test_the_surface_is_refined_by_finished_palpations_near_them_only():
+    from palpd.control.palpation import PalpationRecord
+    from palpd.control.surface import SurfaceGuard
+
+    settings = Settings()
+    guard = SurfaceGuard(settings.palpation, settings.safety)
+    limit = settings.palpation.depth_mm + settings.safety.indentation_margin_mm
+    assert guard.floor_z_mm((0.0, 0.0, 0.0)) == -limit  # the registered surface, z = 0
+    guard.learn(type("Done", (), {"record": PalpationRecord((10.0, 0.0), contact_z_mm=-1.5)})())
+    assert guard.floor_z_mm((12.0, 0.0, 0.0)) == -1.5 - limit  # near a contact point: that surface
+    assert guard.floor_z_mm((-10.0, 0.0, 0.0)) == -limit  # far from it: the registration
+    guard.forget()
+    assert guard.floor_z_mm((12.0, 0.0, 0.0)) == -limit

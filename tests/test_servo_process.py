@@ -53,9 +53,10 @@ def test_a_fault_in_the_loop_reaches_the_parent_latched_with_the_motors_off(benc
     servo = bench.servo
     servo.start()
     servo.run(MoveTo((0.0, 0.0, 2.0), 80.0, 2000.0))
-    with pytest.raises(ScanFault, match="force_cap"):
-        servo.run(MoveTo((0.0, 0.0, -15.0), 20.0, 2000.0))  # 0.6 N/mm tissue: the cap comes first
-    assert servo.fault.code == "force_cap" and servo.fault.last_samples
+    with pytest.raises(ScanFault, match="indentation"):
+        # 0.6 N/mm tissue: 4.75 mm deep (depth_mm and the margin: the surface guard) comes before the cap
+        servo.run(MoveTo((0.0, 0.0, -15.0), 20.0, 2000.0))
+    assert servo.fault.code == "indentation" and servo.fault.last_samples
     assert not servo.motors_on and servo.amplifiers_on is False  # the simulated amplifiers, not a flag of ours
     assert servo.max_contact_force_n <= Settings().safety.force_cap_n + 1.0
     with pytest.raises(ScanFault, match="reset first"):

@@ -81,6 +81,26 @@ def lightest_tip_mass_kg(q: Vec3) -> float:
     return min(i1 / max(reach * reach, 1e-6), i2 / (L1_M * L1_M), i3 / (L2_M * L2_M))
 
 
+def tip_inertia_force_n(q: Vec3, accel_m_s2: Vec3) -> Vec3:
+    """The force on the tip that accelerates it by accel_m_s2 at q: J^-T M J^-1 a (M: each joint's inertia)."""
+    j = jacobian(q)
+    qdd = _solve3(j, accel_m_s2)
+    tau = tuple(i * a for i, a in zip(JOINT_INERTIA_KG_M2, qdd))
+    return _solve3(tuple(zip(*j)), tau)  # type: ignore[arg-type]
+
+
+def _solve3(m, v: Vec3) -> Vec3:
+    """x with m x = v (Cramer's rule; a singular m, at the workspace's edge, gives no force)."""
+    def det(a):
+        return (a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+                + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]))
+    d = det(m)
+    if abs(d) < 1e-12:
+        return (0.0, 0.0, 0.0)
+    return tuple(det([[v[r] if c == k else m[r][c] for c in range(3)] for r in range(3)]) / d
+                 for k in range(3))  # type: ignore[return-value]
+
+
 def tip_velocity(q: Vec3, qdot: Vec3) -> Vec3:
     j = jacobian(q)
     return tuple(row[0] * qdot[0] + row[1] * qdot[1] + row[2] * qdot[2] for row in j)  # type: ignore[return-value]

@@ -48,6 +48,8 @@ class SimWorld:
         self.contact_force_robot: model.Vec3 = NO_FORCE
         self.contact_force_n = 0.0  # normal force the tissue takes now
         self.max_contact_force_n = 0.0  # its peak over every physics step (reset_peak() starts afresh)
+        self.indentation_mm = 0.0  # how far the tip is below the true surface now (0 above it)...
+        self.max_indentation_mm = 0.0  # ...and the deepest it went, over every physics step (reset_peak() too)
         self.faults = SimFaults(scene.faults, self.t_s)  # fault injection: the scene's [faults], and tests
         self.hand = None  # when set, a person moves the arm: hand.q_at(t_s) overrides the dynamics
         self.step_hook = None  # called after every physics step (tests and benchmarks watch the truth here)
@@ -91,6 +93,7 @@ class SimWorld:
     def reset_peak(self) -> float:
         """The true peak contact force so far, and start a new one."""
         peak, self.max_contact_force_n = self.max_contact_force_n, self.contact_force_n
+        self.max_indentation_mm = self.indentation_mm
         return peak
 
     def tip_mm(self) -> model.Vec3:
@@ -150,6 +153,8 @@ class SimWorld:
         self.contact_force_n = normal_n
         if normal_n > self.max_contact_force_n:
             self.max_contact_force_n = normal_n
+        if self.indentation_mm > self.max_indentation_mm:
+            self.max_indentation_mm = self.indentation_mm
         tau_external = model.joint_torques(q, force) if force is not NO_FORCE else NO_FORCE
         tau_motor = model.currents_to_torques(self.currents_a) if self._amplifiers_on else NO_FORCE
         if self.hand is not None:
@@ -176,6 +181,7 @@ class SimWorld:
     def _contact_force(self, q) -> model.Vec3:
         tip = self.frame.from_robot(model.forward(q))
         depth_mm = -1000.0 * tip[2]
+        self.indentation_mm = max(depth_mm, 0.0)
         if depth_mm <= 0.0:
             return NO_FORCE
         vx = vy = vz = 0.0

@@ -254,6 +254,9 @@ class ScanStartArgs(_Args):
     """Press point by point, or slide along paths in contact (max_palpations then counts paths); null: palpation.mode."""
     resume: bool = False
     """Continue the unfinished session instead of starting a new one (other arguments are ignored)."""
+    discard: bool = False
+    """Abandon the unfinished session and start a new one; without resume or discard, a scan.start over an
+    unfinished session (stopped, faulted or cut by a crash) is refused with `unfinished_session`."""
 
 
 class ProbeAtArgs(_Args):
@@ -288,8 +291,8 @@ class ErrorBody(BaseModel):
     """What went wrong."""
 
     model_config = SENT
-    code: Literal["bad_json", "bad_request", "unknown_command", "bad_args", "invalid_state", "forbidden",
-                  "unavailable", "internal"]
+    code: Literal["bad_json", "bad_request", "unknown_command", "bad_args", "invalid_state", "unfinished_session",
+                  "forbidden", "unavailable", "internal"]
     """Machine-readable reason."""
     message: str
     """One line for a person."""

@@ -35,6 +35,8 @@ class ScanStartReply(Reply):
     """Palpations the scan plans."""
     already_done: int
     """Palpations journaled before this start (resume), else 0."""
+    discarded: str = ""
+    """The unfinished session this start abandoned (discard), else empty."""
 
 
 class AcceptedReply(Reply):

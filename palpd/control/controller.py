@@ -47,6 +47,7 @@ class CartesianPD:
         self.damping_bound = damping_bound(self.kp / self.kd if self.kd else 0.0, period_s, velocity_filter_hz)
         self.limited = False  # whether the last command was clamped to force_limit_n
         self.last_force_n = 0.0  # magnitude of the last commanded force
+        self.last_force_vec_n: Vec3 = (0.0, 0.0, 0.0)  # the last commanded force itself (tissue frame, N)
         self.hold_a: Vec3 = (0.0, 0.0, 0.0)  # gravity compensation alone at the last pose: what a silent host leaves on
 
     def currents(self, q: Vec3, tip_mm: Vec3, velocity_mm_s: Vec3, target_mm: Vec3,
@@ -64,6 +65,7 @@ class CartesianPD:
             scale = self.force_limit_n / magnitude
             fx, fy, fz, magnitude = fx * scale, fy * scale, fz * scale, self.force_limit_n
         self.last_force_n = magnitude
+        self.last_force_vec_n = (fx, fy, fz)
         tau = model.joint_torques(q, TissueFrame.vector_to_robot((fx, fy, fz)))
         g0, g1, g2 = model.gravity_torques(q)
         limit = self.current_limit_a

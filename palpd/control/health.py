@@ -10,16 +10,28 @@ the tare, and the tissue takes more than palpd reads. At every approach, the for
 `safety.drift_window_s` out of contact (the tip at clearance height above the tissue) is compared with the tare
 (zero): beyond `drift_retare_n` the sensor is tared again there, beyond `drift_fault_n` it is a fault (a zero
 that moved that much between two palpations is a broken sensor, or the probe is touching something).
+
+Mismatch: between two approaches the zero can wander far while the probe presses (the issue-51 bench: 4 N read
+where the tissue took 6 N). So every tick the force read along the tissue normal is held against the force the
+last command's motor currents put on the tip (the controller's Jᵀ force, gravity aside): with the arm moving
+gently the two balance but for the arm's inertia, which an impact or a release makes large only for a few ms.
+Low-passed over MISMATCH_FILTER_S, further apart than `safety.force_mismatch_n` for `force_mismatch_window_s`,
+the sensor is wrong: a `sensor_drift` fault, in contact or out of it, long before the true force can pass the cap
+(the controller itself never pushes harder than the cap).
 """
 from __future__ import annotations
 
 import math
 from collections import deque
 
+from drivers.geometry import TissueFrame
 from drivers.interfaces import SAMPLE_REPEAT
+from drivers.phantom import model
 from palpd.control.safety import Fault
 
 CLEARANCE_SLACK_MM = 1.0  # the tip counts as out of contact this close under the clearance height (tracking)
+MISMATCH_FILTER_S = 0.01  # the read and pushed forces low-passed over this: an impact's inertia lasts a few ms
+INERTIA_MEMORY_S = 0.05  # the arm lags its path's acceleration: what that acceleration takes is allowed this long
 
 
 class SensorHealth:
@@ -28,8 +40,11 @@ class SensorHealth:
         self.s, self.forces = safety, forces
         self.above_mm = clearance_mm - CLEARANCE_SLACK_MM
         self._window: deque = deque(maxlen=max(2, round(safety.drift_window_s / period_s)))
+        self._smoothing = 1.0 - math.exp(-period_s / MISMATCH_FILTER_S)
+        self._inertia_decay = math.exp(-period_s / INERTIA_MEMORY_S)
         self.retares = 0
         self.max_drift_n = 0.0  # the largest drift found at an approach since start-up
+        self.recovering = False  # set by the supervisor while the arm is brought back from wherever it lay
         self.reset()
 
     def reset(self) -> None:
@@ -37,9 +52,33 @@ class SensorHealth:
         self._last_reading = None
         self._same_since_s: float | None = None
         self._was_above = False
+        self._mismatch_n = 0.0
+        self._inertia_n = 0.0
+        self._apart_since_s: float | None = None
 
     def check(self, tick) -> Fault | None:
-        return self._frozen(tick) or self._drift(tick)
+        return self._frozen(tick) or self._drift(tick) or self._mismatch(tick)
+
+    def _mismatch(self, tick) -> Fault | None:
+        """The normal force read against the normal force the motors push with (both low-passed)."""
+        if tick.setpoint_mm is None or self.recovering:  # nothing pushes yet, or the arm is pulled off the tissue
+            return None
+        read_n, pushed_n = tick.force_tissue_n[2], -tick.commanded_force_n[2]
+        self._mismatch_n += (read_n - pushed_n - self._mismatch_n) * self._smoothing
+        # Part of the push accelerates the arm along its path (a travel's start, a slide's swing), not the tissue;
+        # the arm takes it up late, so the tolerance widens by what the path's acceleration takes, for a while.
+        self._inertia_n = max(abs(_inertia_z_n(tick)), self._inertia_n * self._inertia_decay)
+        if abs(self._mismatch_n) <= self.s.force_mismatch_n + self._inertia_n:
+            self._apart_since_s = None
+            return None
+        if self._apart_since_s is None:
+            self._apart_since_s = tick.t_s
+        apart_s = tick.t_s - self._apart_since_s
+        if apart_s < self.s.force_mismatch_window_s:
+            return None
+        return Fault("sensor_drift", f"force sensor reads {read_n:.2f} N along the tissue normal where the motors "
+                     f"push {pushed_n:.2f} N ({self._mismatch_n:+.2f} N apart for {1000 * apart_s:.0f} ms, beyond "
+                     f"safety.force_mismatch_n {self.s.force_mismatch_n} N): its zero has drifted", tick.t_s)
 
     def _frozen(self, tick) -> Fault | None:
         """New readings (a sample flagged SAMPLE_REPEAT is an old one handed out again: the stale check's)
@@ -85,3 +124,13 @@ class SensorHealth:
 
     def summary(self) -> dict:
         return {"retares": self.retares, "max_drift_n": round(self.max_drift_n, 4)}
+
+
+def _inertia_z_n(tick) -> float:
+    """The force along the normal that the path's acceleration takes to accelerate the arm at its pose."""
+    a = tick.path_accel_mm_s2
+    if a == (0.0, 0.0, 0.0):
+        return 0.0
+    robot = model.tip_inertia_force_n(tick.q, TissueFrame.vector_to_robot((a[0] / 1000.0, a[1] / 1000.0,
+                                                                            a[2] / 1000.0)))
+    return TissueFrame.vector_from_robot(robot)[2]

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from palpd.control.contact import ContactThresholds
 from palpd.control.onset import refine
 from palpd.control.segment import Segment, Segmenter
+from palpd.control.surface import at_floor
 from palpd.control.tasks import MoveTo
 
 Vec3 = tuple[float, float, float]
@@ -151,7 +152,7 @@ class Palpation:
             self.segmenter.forget()
             self.record.t_armed_s = tick.t_s
         self._target_z -= (min(self.s.speed_mm_s, self.s.approach_speed_mm_s) if near else self.s.approach_speed_mm_s) * dt
-        if self._target_z < -(self.s.depth_mm + NO_CONTACT_MARGIN_MM):
+        if self._target_z < -(self.s.depth_mm + NO_CONTACT_MARGIN_MM) or at_floor(tick):
             self._start_retract(tick, "no_contact")
         return self._setpoint()
 
@@ -161,8 +162,8 @@ class Palpation:
             self.record.rebounded = True
             self._start_retract(tick, "force")
             return self._setpoint()
-        if depth >= self.s.depth_mm or tick.normal_force_n >= self.s.max_force_n:
-            reason = "depth" if depth >= self.s.depth_mm else "force"
+        if depth >= self.s.depth_mm or tick.normal_force_n >= self.s.max_force_n or at_floor(tick):
+            reason = "force" if tick.normal_force_n >= self.s.max_force_n and depth < self.s.depth_mm else "depth"
             if self.s.hold_s > 0 and not (reason == "force" and self._shallow()):
                 self._phase, self._hold_until, self.record.stop_reason = "hold", tick.motion_t_s + self.s.hold_s, reason
             else:

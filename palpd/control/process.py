@@ -106,12 +106,16 @@ class ServoProcess:
             # robot time differ by milliseconds from run to run.
             while not self.conn.poll(IDLE_BEAT_S):
                 self.ring.beat(None, self.servo.timing.ticks, self.servo.timing.overruns)
+                self.conn.poll(self.servo.period_s)  # a link that fails at once must not spin the loop
             return self.conn.recv()
         while not self.conn.poll(0):
             try:
                 self.servo.idle_tick()
-            except ScanFault:
-                pass  # latched, motors off; the parent learns it with its next request
+            except ScanFault:  # latched, motors off; the parent learns it with its next request
+                # The loop is alive even with no robot to tick with (a lost link): its heartbeat says so, or
+                # the parent would take it for hung (servo_lost, "no heartbeat") instead of naming the link.
+                self.ring.beat(None, self.servo.timing.ticks, self.servo.timing.overruns)
+                self.conn.poll(self.servo.period_s)  # a link that fails at once must not spin the loop
         return self.conn.recv()
 
     def _handle(self, command: str, *args) -> bool:
@@ -164,7 +168,8 @@ class ServoProcess:
         return {"fault": servo.fault, "last_tick": servo.last_tick, "max_contact_force_n": servo.max_contact_force_n,
                 "motors_on": servo.motors_on, "bias_n": servo.forces.bias_n, "sensor": servo.health.summary(),
                 "amplifiers_on": world.amplifiers_on if world is not None else None,
-                "true_max_contact_force_n": servo.true_max_contact_force_n}
+                "true_max_contact_force_n": servo.true_max_contact_force_n,
+                "true_max_indentation_mm": servo.true_max_indentation_mm}
 
 
 def _exit_on_signal(signum, frame) -> None:

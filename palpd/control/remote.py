@@ -116,6 +116,7 @@ class RemoteServo:
         self.last_tick = None
         self.max_contact_force_n = 0.0
         self.true_max_contact_force_n: float | None = None
+        self.true_max_indentation_mm: float | None = None
         self.motors_on = False
         self.amplifiers_on = None
         self.period_s = 0.001
@@ -246,6 +247,7 @@ class RemoteServo:
         self.forces.bias_n, self.amplifiers_on = state["bias_n"], state["amplifiers_on"]
         self.health.last = state["sensor"]
         self.true_max_contact_force_n = state["true_max_contact_force_n"]
+        self.true_max_indentation_mm = state["true_max_indentation_mm"]
 
     def _lost(self, why: str):
         """The child is gone or hung: kill it (the bridge watchdog cuts the current), latch, raise."""

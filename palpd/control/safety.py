@@ -87,7 +87,7 @@ class SafetySupervisor:
         self._rigid_since: float | None = None
         self._rigid_at = (0.0, 0.0, 0.0)
         self._astray_since: float | None = None
-        self._limits_now = (self.joint_ranges, self.box_mm)
+        self._recovering(False)
         for monitor in self.monitors:
             monitor.reset()
 
@@ -114,7 +114,15 @@ class SafetySupervisor:
 
     def narrow(self) -> None:
         """Back to the configured limits after widen_to()."""
-        self._limits_now = (self.joint_ranges, self.box_mm)
+        self._recovering(False)
+
+    def _recovering(self, on: bool) -> None:
+        """Monitors that judge a palpation (the sensor against the motors, the depth below the surface) stand
+        aside while the arm is recovered from wherever a fault left it: it may lie in the tissue, pushed off it."""
+        if not on:
+            self._limits_now = (self.joint_ranges, self.box_mm)
+        for monitor in self.monitors:
+            monitor.recovering = on
 
     def widen_to(self, tick) -> None:
         """Accept the pose the arm is in now as inside the limits (recovering it from wherever it came to
@@ -122,6 +130,7 @@ class SafetySupervisor:
         (joints, box) = self._limits_now
         joints = tuple((min(lo, q - WIDEN_RAD), max(hi, q + WIDEN_RAD)) for (lo, hi), q in zip(joints, tick.q))
         box = tuple((min(lo, v - WIDEN_MM), max(hi, v + WIDEN_MM)) for (lo, hi), v in zip(box, tick.tip_mm))
+        self._recovering(True)
         self._limits_now = (joints, box)
 
     # -- the checks, in order -------------------------------------------------------------------------

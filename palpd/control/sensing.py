@@ -37,6 +37,9 @@ class Tick:
     setpoint_mm: Vec3 | None = None  # where the last command sent the tip (None: no command yet)
     commanded_n: float = 0.0  # the force the last command asked for (clamped to the cap)
     lost_s: float = 0.0  # periods the loop skipped (missed deadlines) just before this tick
+    commanded_force_n: Vec3 = NO_FORCE  # the force the last command's motor currents put on the tip (tissue frame)
+    floor_z_mm: float = -math.inf  # the deepest the tip may go here (palpd.control.surface; -inf: no floor known)
+    path_accel_mm_s2: Vec3 = NO_FORCE  # the acceleration the last command's path asked of the tip (tissue frame)
 
 
 
@@ -58,7 +61,9 @@ class Sensing:
             self.max_contact_force_n = normal
         self._motion_t += self.period_s
         tick = Tick(t_s, q, tip, self._velocity, force, normal, sample, state.status, gap, sample_gap,
-                    self._motion_t, self._setpoint, self.controller.last_force_n, self._lost_s)
+                    self._motion_t, self._setpoint, self.controller.last_force_n, self._lost_s,
+                    self.controller.last_force_vec_n,
+                    self.surface.floor_z_mm(tip) if self.surface is not None else -math.inf, self._path_accel)
         self._lost_s = 0.0
         self.last_tick = tick
         self.history.append((t_s, tip, force))

@@ -32,6 +32,7 @@ Vec3 = tuple[float, float, float]
 FAULT_HISTORY_TICKS = 20  # samples kept with a fault record
 NO_OFFSET = (0.0, 0.0, 0.0)
 NO_CURRENT = (0.0, 0.0, 0.0)
+JUMP_ACCEL_MM_S2 = 10000.0  # a path's velocity changing faster than this is a jump (a new task, a release), not motion
 
 
 class ServoLoop(Sensing, Stopping):
@@ -79,8 +80,11 @@ class ServoLoop(Sensing, Stopping):
         self.drift_after_s = drift_after_s if drift_after_s is not None else 2.5 * self.period_s
         self._velocity_error: Vec3 = NO_OFFSET
         self._task_target: Vec3 | None = None  # the task's own last target (without the offset)
+        self._path_v: Vec3 = NO_OFFSET
+        self._path_accel: Vec3 = NO_OFFSET  # how the path's velocity changed at the last command (the arm's inertia)
         self._sensor_lost: str | None = None
         self._last_sample: ForceSample | None = None
+        self.surface = None  # where the tissue surface is (palpd.control.surface.SurfaceGuard): tasks keep above its floor
 
     @property
     def ticks(self) -> int:
@@ -95,12 +99,21 @@ class ServoLoop(Sensing, Stopping):
         """In simulation, the world's own peak contact force since start(); None on hardware."""
         return None if self.truth is None else self.truth.max_contact_force_n
 
+    @property
+    def true_max_indentation_mm(self) -> float | None:
+        """In simulation, the tip's deepest position below the true surface since start(); None on hardware."""
+        return None if self.truth is None else self.truth.max_indentation_mm
+
     def start(self, home: bool = True) -> None:
         """Amplifiers on, then (home=True) the arm back to its rest pose from wherever it lies, supervised:
         straight up off the tissue first (after a category-0 stop it may have fallen onto it). Raises ScanFault
         (motors off) if safety stops that. The first tick comes a period after the enable and reads its reply
-        (one exchange a tick). home=False is for a person holding the arm (a manual session)."""
-        self.robot.enable()
+        (one exchange a tick). home=False is for a person holding the arm (a manual session). A bridge that
+        does not answer the enable is a robot_link fault (ScanFault), as it is mid-task."""
+        try:
+            self.robot.enable()
+        except DriverError as exc:
+            self._link_lost(exc)
         self.motors_on = True
         self._setpoint, self._hold_mm, self._error, self._task_target = None, None, None, None
         self.rejoin.reset()
@@ -113,6 +126,8 @@ class ServoLoop(Sensing, Stopping):
         # they made a loop_stall at start().
         self._lost_s = 0.0
         self.supervisor.reset()  # the arm may have been moved by hand while the motors were off
+        if self.surface is not None:
+            self.surface.forget()  # a new scan: the tissue may have been moved
         if self.truth is not None:
             self.truth.reset_peak()
         if home:
@@ -157,6 +172,8 @@ class ServoLoop(Sensing, Stopping):
                     task.jumped, self._task_target = False, None
                 self._command(tick, target)
                 self._end_tick(tick, started)
+            if self.surface is not None:
+                self.surface.learn(task)
         except DriverError as exc:
             self._link_lost(exc)
         finally:
@@ -220,6 +237,7 @@ class ServoLoop(Sensing, Stopping):
     def _command(self, tick: Tick, target: Vec3) -> None:
         """Write the currents that take the tip to the task's target, rejoining the path after a late tick."""
         velocity = self._path_velocity(target)
+        self._path_accel = self._path_acceleration(velocity)
         self._hold_mm = target
         rejoin = self.rejoin
         if tick.gap_s > self.drift_after_s and self._error is not None:
@@ -244,6 +262,12 @@ class ServoLoop(Sensing, Stopping):
         rate = 1.0 / self.period_s
         v = ((target[0] - previous[0]) * rate, (target[1] - previous[1]) * rate, (target[2] - previous[2]) * rate)
         return v if v[0] * v[0] + v[1] * v[1] + v[2] * v[2] <= self._max_setpoint_speed_sq else NO_OFFSET
+
+    def _path_acceleration(self, velocity: Vec3) -> Vec3:
+        previous, self._path_v = self._path_v, velocity
+        rate = 1.0 / self.period_s
+        a = ((velocity[0] - previous[0]) * rate, (velocity[1] - previous[1]) * rate, (velocity[2] - previous[2]) * rate)
+        return a if a[0] * a[0] + a[1] * a[1] + a[2] * a[2] <= JUMP_ACCEL_MM_S2 ** 2 else NO_OFFSET
 
     def _end_tick(self, tick: Tick, started: float) -> None:
         if self.tick_hook is not None:

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 from palpd.control.contact import ContactThresholds
 from palpd.control.palpation import NO_CONTACT_MARGIN_MM
+from palpd.control.surface import at_floor
 from palpd.control.tasks import MoveTo
 from palpd.control.trajectory import LinearMove
 
@@ -83,13 +84,16 @@ class SlidingPalpation:
             self.record.contact_z_mm, self._phase = tick.tip_mm[2] + lag_mm, "press"
             return self._setpoint()
         self._z -= self.s.approach_speed_mm_s * dt
-        if self._z < -(self.s.sliding_depth_mm + NO_CONTACT_MARGIN_MM):
+        if self._z < -(self.s.sliding_depth_mm + NO_CONTACT_MARGIN_MM) or at_floor(tick):
             self._lift("no_contact")
         return self._setpoint()
 
     def _press(self, tick, dt) -> Vec3:
         """Down to the set indentation at the indentation speed, then the modulation and the path begin."""
         goal = self.record.contact_z_mm - self.s.sliding_depth_mm
+        if at_floor(tick):  # the contact was read late (or the sensor lies): no deeper than the floor
+            self._lift("depth")
+            return self._setpoint()
         self._z = max(goal, self._z - self.s.speed_mm_s * dt)
         if self._z == goal:
             self._phase, self._t0 = "slide", tick.motion_t_s
@@ -113,6 +117,8 @@ class SlidingPalpation:
     def _stopped_by(self, tick) -> bool:
         if tick.normal_force_n >= self.s.max_force_n:
             self._lift("force")
+        elif at_floor(tick):
+            self._lift("depth")
         elif self._filtered_n < self.contact.off_n:
             self._lift("lost_contact")
         return self._phase != "slide"

@@ -5,7 +5,7 @@ import logging
 
 from palpd.daemon.jobs import ProbeJob, RestartServoJob, ScanJob, region_problem, resolved_scan, session_plan
 from palpd.daemon.learning import make_estimator, scan_settings
-from palpd.daemon.session import PROBES, Session
+from palpd.daemon.session import PROBES, UNFINISHED, Session
 
 log = logging.getLogger("palpd.daemon")
 ALLOWED_STATES = {
@@ -50,22 +50,44 @@ def probe_records(entries: list[dict]) -> list[dict]:
 
 def scan_start(sup, command) -> None:
     args = command.args
+    if args.resume and args.discard:
+        sup.commands.fail(command, "bad_args", "scan.start args: resume and discard exclude each other")
+        return
     if args.resume:
         _resume(sup, command)
         return
-    scan = args.model_dump(mode="json", exclude={"resume"})
+    scan = args.model_dump(mode="json", exclude={"resume", "discard"})
     problem = region_problem(scan, sup.bench.tissue_size_mm)
     if problem:
         sup.commands.fail(command, "bad_args", f"scan.start args: {problem}")
         return
-    if sup.session is not None and sup.session.meta["status"] == "unfinished":
-        sup.session.finish("abandoned")
-        log.info("session %s abandoned (a new scan started)", sup.session.name)
+    refusal = _unfinished_refusal(sup.session, args.discard)
+    if refusal:
+        sup.commands.fail(command, "unfinished_session", refusal)
+        return
+    discarded = _discard(sup.session)
     scan = resolved_scan(scan, sup.bench.tissue_size_mm, sup.settings)
     sup.session = Session.create(sup.sessions_dir, scan)
     sup.show_map(None)
     sup.estimator = make_estimator(scan_settings(sup.settings, scan), scan, sup.bench.tissue_size_mm)
-    _start(sup, command)
+    _start(sup, command, discarded)
+
+
+def _unfinished_refusal(session, discard: bool) -> str | None:
+    """No work is thrown away unasked: a new scan over an unfinished session needs resume or discard."""
+    if session is None or session.meta["status"] != UNFINISHED or discard:
+        return None
+    return (f"session {session.name} is unfinished ({len(session.entries)} palpations journaled): scan.start "
+            "with resume to continue it, or discard to abandon it and start anew")
+
+
+def _discard(session) -> str:
+    """Abandon the unfinished session (its files stay); its name, or "" when there was none."""
+    if session is None or session.meta["status"] != UNFINISHED:
+        return ""
+    session.finish("abandoned")
+    log.info("session %s abandoned (discarded by a new scan.start)", session.name)
+    return session.name
 
 
 def _resume(sup, command) -> None:
@@ -76,7 +98,7 @@ def _resume(sup, command) -> None:
     _start(sup, command)  # the estimator was rebuilt from the journal when the session was recovered
 
 
-def _start(sup, command) -> None:
+def _start(sup, command, discarded: str = "") -> None:
     scan = sup.session.meta["scan"]
     settings = scan_settings(sup.settings, scan)
     planner = session_plan(scan, sup.estimator, sup.session.entries, settings)
@@ -91,7 +113,7 @@ def _start(sup, command) -> None:
              len(sup.session.entries), sup.job.recording)
     sup.set_state("scanning", f"scan {scan['strategy']}")
     sup.commands.reply(command, session=sup.session.name, expected_total=planner.expected_total,
-                       already_done=len(sup.session.entries))
+                       already_done=len(sup.session.entries), discarded=discarded)
 
 
 def scan_stop(sup, command) -> None:
@@ -154,7 +176,7 @@ def job_ended(sup, fault: dict | None) -> None:
     if isinstance(job, ScanJob) and job.finished:
         sup.session.finish("finished")
     elif isinstance(job, ScanJob) and job.stop_reason == "stopped":
-        sup.session.finish("stopped")
+        sup.session.close()  # stays unfinished: scan.start {"resume": true} goes on where scan.stop left it
     if isinstance(job, ScanJob):
         log.info("session %s %s after %d palpations", sup.session.name, sup.session.meta["status"],
                  len(sup.session.entries))
@@ -165,4 +187,4 @@ def job_ended(sup, fault: dict | None) -> None:
         sup.set_state("ready", "scan finished" if getattr(job, "finished", False) else
                       "servo process restarted" if isinstance(job, RestartServoJob) else "")
     if isinstance(job, (ScanJob, ProbeJob)):
-        sup.close_recording()  # after the last status and fault, so the recording has them
+        sup.end_recording(fault)  # after the last status and fault, so the recording has them

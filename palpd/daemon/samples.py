@@ -7,6 +7,9 @@ counted (status `samples_lost`) and logged, never hidden.
 from __future__ import annotations
 
 import logging
+import math
+import time
+from collections import deque
 
 log = logging.getLogger("palpd.recorder")
 
@@ -19,12 +22,20 @@ def raw_samples(ring_samples) -> list[dict]:
             for t, tip, f, fn, status in zip(*columns)]
 
 
+REST_SAMPLES = 200  # the arm is at rest when its newest this many ticks (0.2 s at 1 kHz)...
+REST_MM = 0.05  # ...stay within this of each other
+NOTHING_TICKS_S = 0.5  # no tick for this long (virtual time stands still between tasks): nothing moves either
+SETTLE_LIMIT_S = 10.0  # the recording waits at most this long for the arm to come to rest
+
+
 class SampleDrain:
     def __init__(self) -> None:
         self.next_index: int | None = None
         self.source = None  # whose ring next_index counts in
         self.lost = 0
         self.recorded = 0
+        self.recent: deque = deque(maxlen=REST_SAMPLES)  # (t_s, tip_mm) of the newest samples drained
+        self.drained_at = time.monotonic()  # when a sample last came
 
     def start(self, servo) -> None:
         """Record from the newest tick on (what came before belongs to no recording)."""
@@ -42,8 +53,25 @@ class SampleDrain:
             self.lost += lost
             log.warning("%d raw samples lost (the servo ring was overwritten before it was read)", lost)
         if len(samples):
-            recording.record_samples(raw_samples(samples))
+            rows = raw_samples(samples)
+            recording.record_samples(rows)
             self.recorded += len(samples)
+            self.recent.extend((row["t"], row["tip_mm"]) for row in rows[-REST_SAMPLES:])
+            self.drained_at = time.monotonic()
 
     def stop(self) -> None:
         self.next_index = None
+
+    def at_rest(self, since_s: float) -> tuple[float, float, float] | None:
+        """Where the tip came to rest (the newest sample's position) once it has, else None. Also once no tick
+        came for NOTHING_TICKS_S, or SETTLE_LIMIT_S after since_s (monotonic): the recording must end."""
+        now = time.monotonic()
+        newest = self.recent[-1][1] if self.recent else None
+        quiet = now - self.drained_at > NOTHING_TICKS_S and now - since_s > NOTHING_TICKS_S
+        if quiet or now - since_s > SETTLE_LIMIT_S:
+            return tuple(newest) if newest is not None else (math.nan, math.nan, math.nan)
+        if len(self.recent) < REST_SAMPLES:
+            return None
+        tips = [tip for _, tip in self.recent]
+        spread = max(max(tip[i] for tip in tips) - min(tip[i] for tip in tips) for i in range(3))
+        return tuple(newest) if spread <= REST_MM else None

@@ -72,6 +72,10 @@ class Session:
     def finish(self, status: str) -> None:
         self.meta["status"] = status
         self.save_meta()
+        self.close()
+
+    def close(self) -> None:
+        """The journal closed, the session as it is (an unfinished one stays resumable)."""
         if self._journal is not None:
             self._journal.close()
             self._journal = None

@@ -53,6 +53,7 @@ class Supervisor:
         self._last_watchdog = 0.0
         self._last_status_s = 0.0
         self._now_s = 0.0
+        self._settling_since: float | None = None  # a category-0 stop: recording until the arm is at rest
 
     @property
     def estimator(self):
@@ -167,6 +168,8 @@ class Supervisor:
         if self.recording is not None:
             self.samples.drain(self.bench.servo, self.recording)
             self.recording.flush_if_due()
+            if self._settling_since is not None:
+                self._close_when_at_rest()
         if self.job is None and self.state == "ready":
             self._check_idle_servo()
         if time.monotonic() - self._last_status_s >= self.settings.daemon.status_interval_s:
@@ -219,6 +222,8 @@ class Supervisor:
         self.samples.drain(self.bench.servo, self.recording)  # the last ticks, before the ring goes away
         self.bench.servo.close()  # the servo process quits with its motors off
         self._drain_worker()
+        if self._settling_since is not None:  # the servo process is gone: nothing more moves that it could record
+            self.close_recording()
         self.set_state("stopped", "terminated")
         self.close_recording()
         self.close()
@@ -290,7 +295,27 @@ class Supervisor:
             self.job.recording = path.name
         self.samples.start(self.bench.servo)
 
+    def end_recording(self, fault: dict | None) -> None:
+        """The scan's recording ends now, or after a category-0 stop (the current cut where the arm was: it
+        falls or floats) once the arm is at rest, so the recording holds where it came to lie."""
+        if fault is None or fault.get("stop_category") != 0 or self.recording is None:
+            self.close_recording()
+            return
+        self.samples.recent.clear()
+        self._settling_since = time.monotonic()
+
+    def _close_when_at_rest(self) -> None:
+        tip = self.samples.at_rest(self._settling_since)
+        if tip is None:
+            return
+        waited_s = time.monotonic() - self._settling_since
+        log.info("after the stop the arm came to rest with the tip at (%.1f, %.1f, %.1f) mm, %.1f mm %s the tissue "
+                 "surface (%.2f s later); recording closed", *tip, abs(tip[2]), "below" if tip[2] < 0 else "above",
+                 waited_s)
+        self.close_recording()
+
     def close_recording(self) -> None:
+        self._settling_since = None
         if self.recording is not None:
             self.samples.drain(self.bench.servo, self.recording)
             self.samples.stop()

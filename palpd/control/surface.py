@@ -1,0 +1,74 @@
+"""Where the tissue surface is, and how deep below it the tip may go, whatever the force sensor reads.
+
+The force sensor decides where a palpation touches and when it has pressed far enough; a sensor that reads
+the tissue lighter than it is (a drifting zero) would let it press on and on. So depth is bounded by position
+too: the surface starts where the tissue was registered (z = 0 in the tissue frame) and is refined by each
+palpation's contact point once that palpation has ended without a fault (never by the press under way: its own
+reading is the one in doubt). The floor at a point is that surface less the deepest indentation any palpation
+asks for (palpation.depth_mm, or a slide's depth and swing) less `safety.indentation_margin_mm`. A task ends
+its press when the tip comes within FLOOR_CLEARANCE_MM of the floor, as at its depth (by the tip, not the
+setpoint: pressing stiff tissue the tip lags its setpoint by the force over the controller's stiffness), and
+the tip below the floor is an `indentation` fault (category 1: the probe backs out along the normal).
+"""
+from __future__ import annotations
+
+import math
+
+from palpd.control.safety import Fault
+
+NEAR_MM = 15.0  # a contact point this close says where the surface is; farther, the registration does
+FLOOR_CLEARANCE_MM = 0.25  # a task stops pressing this far above the floor: the tip's overshoot stays above it
+NO_FLOOR = -math.inf
+
+
+def deepest_press_mm(palpation) -> float:
+    """How far below the surface a palpation may ask to go: a press's depth or a slide's depth and swing."""
+    return max(palpation.depth_mm, palpation.sliding_depth_mm + palpation.modulation_mm)
+
+
+def at_floor(tick) -> bool:
+    """The tip has come as deep as a task may take it here: the press ends, as at its depth."""
+    return tick.tip_mm[2] <= tick.floor_z_mm + FLOOR_CLEARANCE_MM
+
+
+class SurfaceGuard:
+    """A monitor of the safety supervisor (check, reset) that also learns the surface (learn, forget)."""
+
+    def __init__(self, palpation, safety) -> None:
+        """palpation, safety: palpd.config.PalpationSettings, SafetySettings."""
+        self.limit_mm = deepest_press_mm(palpation) + safety.indentation_margin_mm
+        self.contacts: list[tuple[float, float, float]] = []
+        self.recovering = False  # set by the supervisor while the arm is brought up from wherever it lay
+
+    def reset(self) -> None:
+        """A pause or a reset does not move the tissue: what was learned stays (forget() at a scan's start)."""
+
+    def forget(self) -> None:
+        self.contacts.clear()
+
+    def learn(self, task) -> None:
+        """A palpation that ended without a fault says where it touched (record.contact_z_mm, its target xy)."""
+        record = getattr(task, "record", None)
+        z = getattr(record, "contact_z_mm", None)
+        xy = getattr(record, "target_xy_mm", None) or getattr(record, "start_xy_mm", None)
+        if z is not None and xy is not None and math.isfinite(z):
+            self.contacts.append((xy[0], xy[1], z))
+
+    def surface_z_mm(self, x_mm: float, y_mm: float) -> float:
+        best, nearest = NEAR_MM, 0.0
+        for cx, cy, cz in self.contacts:
+            distance = math.hypot(x_mm - cx, y_mm - cy)
+            if distance < best:
+                best, nearest = distance, cz
+        return nearest
+
+    def floor_z_mm(self, tip_mm) -> float:
+        return self.surface_z_mm(tip_mm[0], tip_mm[1]) - self.limit_mm
+
+    def check(self, tick) -> Fault | None:
+        below_mm = tick.floor_z_mm + self.limit_mm - tick.tip_mm[2]
+        if below_mm <= self.limit_mm or self.recovering:
+            return None
+        return Fault("indentation", f"tip {below_mm:.2f} mm below the tissue surface, deeper than the "
+                     f"{self.limit_mm:.2f} mm any palpation may go (depth plus safety.indentation_margin_mm), "
+                     "whatever the force reads", tick.t_s)
