@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT := out
 
-.PHONY: run test reproduce clean
+.PHONY: run test reproduce figures docs clean
 
 $(BIN)/palpd: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -29,5 +29,13 @@ test: $(BIN)/palpd
 reproduce: $(BIN)/palpd
 	$(BIN)/python scripts/reproduce.py
 
+# The tables and pictures the README and the manual include, measured here and stamped with the commit.
+figures: $(BIN)/palpd
+	$(BIN)/python scripts/figures.py
+
+# The manual, into site/ (the docs extra: mkdocs, Material, mkdocstrings; the test extra brings them too).
+docs: $(BIN)/palpd
+	$(BIN)/mkdocs build --strict
+
 clean:
-	rm -rf $(VENV) $(OUT) build *.egg-info
+	rm -rf $(VENV) $(OUT) build site *.egg-info
