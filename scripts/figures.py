@@ -24,15 +24,15 @@ sys.path.insert(0, str(ROOT / "scripts"))
 import active_scenes  # noqa: E402  the same scans and rows as its tables
 
 
-def commit_stamp() -> str:
-    head = _git("rev-parse", "--short", "HEAD")
-    changed = [line[3:] for line in _git("status", "--porcelain").splitlines()]
+def commit_stamp(root: Path = ROOT) -> str:
+    head = _git(root, "rev-parse", "--short", "HEAD").strip()
+    changed = [line[3:] for line in _git(root, "status", "--porcelain").splitlines()]  # "XY path": keep X's blank
     dirty = any(not path.startswith(WRITTEN_HERE) for path in changed)
     return f"{head} (uncommitted changes)" if dirty else head
 
 
-def _git(*args: str) -> str:
-    return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
+def _git(root: Path, *args: str) -> str:
+    return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, check=True).stdout
 
 
 def scans_table(stamp: str) -> str:
@@ -68,13 +68,14 @@ def learner_table(stamp: str) -> str:
     return "\n".join(rows) + f"\n\nMeasured at commit {stamp} by `make figures` (`palpd bench learner`).\n"
 
 
-def copy_into_readme(name: str, text: str) -> None:
-    readme = ROOT / "README.md"
-    pattern = re.compile(rf"(<!-- figures:{name} -->\n).*?(<!-- /figures:{name} -->)", re.S)
+def marked(name: str) -> re.Pattern:
+    """What sits between a figure's marker comments in the README."""
+    return re.compile(rf"(<!-- figures:{name} -->\n)(.*?)(<!-- /figures:{name} -->)", re.S)
+
+
+def copy_into_readme(name: str, text: str, readme: Path = ROOT / "README.md") -> None:
     content = readme.read_text()
-    if not pattern.search(content):
-        return
-    readme.write_text(pattern.sub(lambda m: m.group(1) + text + m.group(2), content))
+    readme.write_text(marked(name).sub(lambda m: m.group(1) + text + m.group(3), content))
 
 
 def main() -> int:

@@ -69,3 +69,36 @@ def test_the_readme_is_a_front_door_of_at_most_200_lines_that_keeps_the_two_make
     assert "make run" in readme and "make test" in readme
     for link in re.findall(r"\]\(((?:docs/|CHANGELOG)[^)#]*)", readme):
         assert (ROOT / link).exists(), f"README links to {link}, which is not there"
+
+
+def figures_script():
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import figures
+
+    return figures
+
+
+def test_the_readmes_figures_are_the_ones_make_figures_wrote_and_say_which_commit_they_measured():
+    figures = figures_script()
+    readme = (ROOT / "README.md").read_text()
+    names = re.findall(r"<!-- figures:([\w-]+) -->", readme)
+    assert {"scans", "paper-map"} <= set(names)
+    for name in names:
+        written = (ROOT / "docs" / "figures" / f"{name}.md").read_text()
+        assert figures.marked(name).search(readme).group(2) == written  # copied, not typed
+        assert re.search(r"at commit [0-9a-f]{7,}", written), written
+
+
+def test_make_figures_stamps_a_dirty_tree_uncommitted_and_rewrites_only_between_its_markers(tmp_path):
+    figures = figures_script()
+    git = ["git", "-c", "user.name=t", "-c", "user.email=t@t"]
+    subprocess.run([*git, "init", "-q", str(tmp_path)], check=True)
+    readme = tmp_path / "README.md"
+    readme.write_text("before\n<!-- figures:scans -->\nold\n<!-- /figures:scans -->\nafter\n")
+    subprocess.run([*git, "add", "-A"], cwd=tmp_path, check=True)
+    subprocess.run([*git, "commit", "-qm", "x"], cwd=tmp_path, check=True)
+    figures.copy_into_readme("scans", "new table\n", readme)
+    assert readme.read_text() == "before\n<!-- figures:scans -->\nnew table\n<!-- /figures:scans -->\nafter\n"
+    assert "uncommitted" not in figures.commit_stamp(tmp_path)  # the README is what it writes itself
+    (tmp_path / "code.py").write_text("changed = True\n")
+    assert figures.commit_stamp(tmp_path).endswith("(uncommitted changes)")
