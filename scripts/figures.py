@@ -9,6 +9,7 @@ minutes: active scans of a few shipped scenes in simulated time, the paper scan'
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -65,7 +66,9 @@ def learner_table(stamp: str) -> str:
             f"| palpd (wall) | {result['update_ms']['p50']:.2f} ms | {result['update_ms']['max']:.2f} ms |",
             f"| scikit-learn GP, kernel fixed | {result['sklearn_fixed_kernel_ms']['p50']:.1f} ms "
             f"| {result['sklearn_fixed_kernel_ms']['max']:.1f} ms |"]
-    return "\n".join(rows) + f"\n\nMeasured at commit {stamp} by `make figures` (`palpd bench learner`).\n"
+    load = os.getloadavg()[0]  # wall times: a busy machine reads slower, so the figure says how busy
+    return "\n".join(rows) + (f"\n\nMeasured at commit {stamp} by `make figures` (`palpd bench learner`), "
+                              f"load average {load:.1f} on {os.cpu_count()} CPUs.\n")
 
 
 def marked(name: str) -> re.Pattern:
