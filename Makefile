@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT := out
 
-.PHONY: run test reproduce clean
+.PHONY: run test reproduce figures docs clean
 
 # setuptools notes every editable install of a mapped layout (config/ ships as palpd.share) at length:
 # informational only, so hidden; anything else it says about the packaging still shows.
@@ -31,5 +31,13 @@ test: $(BIN)/palpd
 reproduce: $(BIN)/palpd
 	$(BIN)/python scripts/reproduce.py
 
+# The tables and pictures the README and the manual include, measured here and stamped with the commit.
+figures: $(BIN)/palpd
+	$(BIN)/python scripts/figures.py
+
+# The manual, into site/ (the docs extra: mkdocs, Material, mkdocstrings; the test extra brings them too).
+docs: $(BIN)/palpd
+	$(BIN)/mkdocs build --strict
+
 clean:
-	rm -rf $(VENV) $(OUT) build *.egg-info
+	rm -rf $(VENV) $(OUT) build site *.egg-info

@@ -1,5 +1,5 @@
 """The service as a user meets it: schemas every reply keeps, a late subscriber's status, the Python client and
-the README's examples, palpctl's edges, the live page in a real browser and the Foxglove stream.
+the scripting tutorial's client example, palpctl's edges, the live page in a real browser and the Foxglove stream.
 
 One daemon (virtual time) serves the whole module; each test leaves it ready.
 """
@@ -94,21 +94,19 @@ def test_the_client_scans_and_every_reply_and_event_keeps_its_schema(daemon, sch
         assert isinstance(typed, Status) and typed.state == "ready"
 
 
-def readme_examples() -> dict[str, str]:
-    """The README's runnable Python examples, by the comment on their first line."""
-    blocks = re.findall(r"```python\n(.*?)```", (ROOT / "README.md").read_text(), re.S)
-    return {block.splitlines()[0]: block for block in blocks if block.startswith("# example:")}
+def tutorial_client_example() -> str:
+    """The scripting tutorial's client of a running daemon: the Python inside its `python - <<'PY'` block."""
+    text = (ROOT / "docs" / "tutorials" / "scripting.md").read_text()
+    (code,) = re.findall(r"python - <<'PY'\n(.*?)^PY$", text, re.S | re.M)
+    return code
 
 
-def test_the_readme_examples_run_as_written(daemon, tmp_path):
-    examples = readme_examples()
-    assert len(examples) == 2 and all(len(code.strip().splitlines()) <= 6 for code in examples.values())
-    running = {name: subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                      text=True, env=daemon.env, cwd=tmp_path) for name, code in examples.items()}
-    for name, process in running.items():  # side by side: one scans the daemon's bench, one its own
-        stdout, stderr = process.communicate(timeout=180)
-        assert process.returncode == 0, (name, stderr)
-        assert re.search(r"\(\s*-?\d+\.\d+, -?\d+\.\d+\)", stdout), (name, stdout)  # a lump's centre
+def test_the_scripting_tutorials_client_example_runs_against_a_daemon(daemon, tmp_path):
+    (tmp_path / "client.py").write_text(tutorial_client_example())
+    ran = subprocess.run([sys.executable, "client.py"], capture_output=True, text=True, env=daemon.env,
+                         cwd=tmp_path, timeout=180)
+    assert ran.returncode == 0, ran.stderr
+    assert re.search(r"\(\s*-?\d+\.\d+, -?\d+\.\d+\)", ran.stdout), ran.stdout  # a lump's centre
 
 
 def test_palpctl_edges_never_show_a_traceback(daemon, tmp_path):

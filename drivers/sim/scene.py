@@ -30,24 +30,25 @@ class _Strict(BaseModel):
 
 
 class Tissue(_Strict):
-    size_mm: tuple[TissueSide, TissueSide] = (60.0, 60.0)
-    stiffness_n_per_mm: PositiveFloat = 0.12
-    exponent: Annotated[float, Field(ge=0.5, le=3.0)] = 1.0
-    damping_n_s_per_mm: NonNegativeFloat = 0.0
+    size_mm: tuple[TissueSide, TissueSide] = (60.0, 60.0)  # the palpable rectangle, centred on the tissue origin
+    stiffness_n_per_mm: PositiveFloat = 0.12  # Hunt–Crossley k of the background tissue
+    exponent: Annotated[float, Field(ge=0.5, le=3.0)] = 1.0  # Hunt–Crossley n (1: a linear spring)
+    damping_n_s_per_mm: NonNegativeFloat = 0.0  # Hunt–Crossley b
     friction: Annotated[float, Field(ge=0.0, le=2.0)] = 0.0  # sliding (Coulomb) friction: lateral / normal force
+    # the felt field from measured samples, a CSV x_mm,y_mm,stiffness_n_per_mm (path relative to the scene)
     map: Optional[str] = None
 
 
 class Lump(_Strict):
-    center_mm: tuple[FiniteFloat, FiniteFloat]
-    radius_mm: PositiveFloat
-    depth_mm: NonNegativeFloat = 0.0
-    stiffness_n_per_mm: PositiveFloat
+    center_mm: tuple[FiniteFloat, FiniteFloat]  # tissue frame
+    radius_mm: PositiveFloat  # the felt stiffness is halfway between background and lump exactly here
+    depth_mm: NonNegativeFloat = 0.0  # below the surface; deeper lumps have a wider, softer edge
+    stiffness_n_per_mm: PositiveFloat  # the effective k felt palpating straight above the centre
 
 
 class Sensor(_Strict):
-    noise_n: NonNegativeFloat = 0.01
-    tilt: bool = False
+    noise_n: NonNegativeFloat = 0.01  # force noise, standard deviation
+    tilt: bool = False  # the sensor's axes tilt with the arm's configuration (the seed paper's error source)
     bias_n: NonNegativeFloat = 0.05  # magnitude of the unknown offset per axis, tared away by palpd
 
 
@@ -68,7 +69,7 @@ class FaultAt(_Strict):
 
 class Scene(_Strict):
     name: Annotated[str, Field(min_length=1)]
-    seed: Annotated[int, Field(ge=0)] = 0
+    seed: Annotated[int, Field(ge=0)] = 0  # the simulator's noise
     tissue: Tissue = Tissue()
     lump: list[Lump] = []
     sensor: Sensor = Sensor()

@@ -9,8 +9,11 @@ UNRESPONSIVE_S.
 from __future__ import annotations
 
 import multiprocessing
+import sys
 import threading
 import time
+import types
+from contextlib import contextmanager
 
 from palpd.bench import Bench, check_reach
 from palpd.control.process import servo_main
@@ -39,7 +42,12 @@ def open_servo_bench(settings, scene, seed: int = 0, realtime: bool = False) -> 
     ours, theirs = context.Pipe()
     process = context.Process(target=servo_main, args=(theirs, ring.name, settings, scene, seed, realtime),
                               name="palpd-servo", daemon=True)
-    process.start()
+    try:
+        with _callers_main_hidden():
+            process.start()
+    except BaseException:
+        ring.close()  # no child, no RemoteServo to close it: the shared memory would outlive us
+        raise
     theirs.close()
     servo = RemoteServo(process, ours, ring)
     try:
@@ -52,6 +60,19 @@ def open_servo_bench(settings, scene, seed: int = 0, realtime: bool = False) -> 
         raise
     servo.period_s, servo.scheduling = info["period_s"], info["scheduling"]
     return Bench(servo, RemoteClock(servo), info["frame"], info["tissue_size_mm"])
+
+
+@contextmanager
+def _callers_main_hidden():
+    """While the child is spawned, an empty `__main__`: multiprocessing would otherwise have the child run
+    the caller's script again (a script without an `if __name__ == "__main__"` guard would start a scan in
+    the child, and a script read from stdin cannot be found at all). The child needs only palpd."""
+    callers_main = sys.modules["__main__"]
+    sys.modules["__main__"] = types.ModuleType("__main__")
+    try:
+        yield
+    finally:
+        sys.modules["__main__"] = callers_main
 
 
 class RemoteClock:

@@ -1,0 +1,96 @@
+"""Measure and write the figures the README and the manual include (run: make figures).
+
+Each table and picture is stamped with the commit it measured (`git rev-parse`; "uncommitted" when the tree
+has changes outside what this writes). Writes docs/figures/*.md and *.png (the manual includes them with
+pymdownx.snippets) and copies each table into README.md between its marker comments
+`<!-- figures:NAME -->` and `<!-- /figures:NAME -->` (GitHub cannot include files). Only what runs in a few
+minutes: active scans of a few shipped scenes in simulated time, the paper scan's map, `palpd bench learner`.
+"""
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+FIGURES = ROOT / "docs" / "figures"
+WRITTEN_HERE = ("docs/figures/", "README.md")  # rewriting these does not make the measured code another one
+SCENES = ("paper", "two-lumps", "no-lump", "elongated-lump", "deep-lump")
+
+sys.path.insert(0, str(ROOT / "scripts"))
+import active_scenes  # noqa: E402  the same scans and rows as its tables
+
+
+def commit_stamp(root: Path = ROOT) -> str:
+    head = _git(root, "rev-parse", "--short", "HEAD").strip()
+    changed = [line[3:] for line in _git(root, "status", "--porcelain").splitlines()]  # "XY path": keep X's blank
+    dirty = any(not path.startswith(WRITTEN_HERE) for path in changed)
+    return f"{head} (uncommitted changes)" if dirty else head
+
+
+def _git(root: Path, *args: str) -> str:
+    return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, check=True).stdout
+
+
+def scans_table(stamp: str) -> str:
+    rows = [active_scenes.HEADER]
+    for name in SCENES:
+        scene = active_scenes.load_scene(active_scenes.SCENES / f"{name}.toml")
+        settings = active_scenes.BASE[0]
+        report, m = active_scenes.scan(scene, "active", settings.learner.max_palpations, 0)
+        rows.append(active_scenes.row(name, report, m))
+    command = "`palpd scan --scene NAME --strategy active --seed 0` (simulated time, default settings)"
+    return "\n".join(rows) + f"\n\nMeasured at commit {stamp} by `make figures`: each row is {command}.\n"
+
+
+def paper_map(stamp: str) -> str:
+    """The paper scene's active scan drawn as `palpd scan --plot` draws it; returns its caption."""
+    with tempfile.TemporaryDirectory() as tmp:
+        report = Path(tmp) / "report.json"
+        subprocess.run([sys.executable, "-m", "palpd", "scan", "--scene", "paper", "--strategy", "active",
+                        "--report", str(report), "--plot", str(FIGURES / "paper-map.png")],
+                       check=True, capture_output=True, text=True)
+        palpations = json.loads(report.read_text())["palpations"]
+    return (f"The paper scene's active scan: {palpations} palpations (`palpd scan --scene paper --strategy active "
+            f"--plot paper-map.png`, measured at commit {stamp} by `make figures`).\n")
+
+
+def learner_table(stamp: str) -> str:
+    result = json.loads(subprocess.run([sys.executable, "-m", "palpd", "bench", "learner", "--json"],
+                                       check=True, capture_output=True, text=True).stdout)
+    rows = ["| learner update at 200 points, 121² grid | median | largest |", "|---|---|---|",
+            f"| palpd (wall) | {result['update_ms']['p50']:.2f} ms | {result['update_ms']['max']:.2f} ms |",
+            f"| scikit-learn GP, kernel fixed | {result['sklearn_fixed_kernel_ms']['p50']:.1f} ms "
+            f"| {result['sklearn_fixed_kernel_ms']['max']:.1f} ms |"]
+    load = os.getloadavg()[0]  # wall times: a busy machine reads slower, so the figure says how busy
+    return "\n".join(rows) + (f"\n\nMeasured at commit {stamp} by `make figures` (`palpd bench learner`), "
+                              f"load average {load:.1f} on {os.cpu_count()} CPUs.\n")
+
+
+def marked(name: str) -> re.Pattern:
+    """What sits between a figure's marker comments in the README."""
+    return re.compile(rf"(<!-- figures:{name} -->\n)(.*?)(<!-- /figures:{name} -->)", re.S)
+
+
+def copy_into_readme(name: str, text: str, readme: Path = ROOT / "README.md") -> None:
+    content = readme.read_text()
+    readme.write_text(marked(name).sub(lambda m: m.group(1) + text + m.group(3), content))
+
+
+def main() -> int:
+    FIGURES.mkdir(parents=True, exist_ok=True)
+    stamp = commit_stamp()
+    figures = {"paper-map": paper_map(stamp), "scans": scans_table(stamp), "learner-bench": learner_table(stamp)}
+    for name, text in figures.items():
+        (FIGURES / f"{name}.md").write_text(text)
+        copy_into_readme(name, text)
+        print(f"figures: docs/figures/{name}.md", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
