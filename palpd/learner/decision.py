@@ -51,7 +51,7 @@ class Decision:
                                         "undecided": self.undecided()} | ({"soft_regions": soft} if soft else {})
 
     def undecided(self) -> str | None:
-        """Why the model choice does not stand yet (None once it does), in the order `_choice_made` asks:
+        """Why the verdict does not stand yet (None once it does), in the order `_count_made` asks:
         what an `undetermined` verdict tells the user beyond "the budget ran out". A choice that is
         confident but explains the readings no better than the tissue's texture allows (`_adequate`) is
         the case where more palpations or a lower confidence would not settle it, and so it is named."""
@@ -64,11 +64,13 @@ class Decision:
             return (f"{chosen}, the likeliest, misses its readings by {self._chosen_noise_sd() / self.noise_floor:.1f}x "
                     f"their noise floor, more than the tissue's texture accounts for: no hypothesis on offer "
                     f"explains them (a shape, edge profile or background the models do not draw)")
-        if weight < self.settings.confidence:
+        count = self.choice.count_of(chosen)
+        if self.choice.count_weight < self.settings.confidence:
             runner_up = f"; runner-up {self.choice.runner_up}" if self.choice.runner_up else ""
-            return f"{chosen} weighs {weight:.3f}, under the confidence asked for ({self.settings.confidence:g}){runner_up}"
-        if chosen != self._chosen_before:
-            return f"the choice became {chosen} on the newest reading"
+            return (f"{chosen} weighs {weight:.3f} and its count of lumps {self.choice.count_weight:.3f}, under the "
+                    f"confidence asked for ({self.settings.confidence:g}){runner_up}")
+        if count != self.choice.count_of(self._chosen_before):
+            return f"the count became {chosen} on the newest reading"
         return None
 
     def unfelt_radius_mm(self) -> float:
@@ -323,10 +325,21 @@ class Decision:
         return None if near.any() else centre
 
     def verdict(self) -> str:
-        """`lumps`, `none`, or `undetermined` when the evidence has not decided between them."""
-        if not self._choice_made():
+        """`lumps`, `none`, or `undetermined` when the evidence has not decided between them: the verdict
+        claims a count of lumps, so it stands once the count is decided, whichever shape the hypotheses
+        that agree on it draw (a 3 x 3 raster over one lump weighed circles:1 at 0.66 and ellipse:1 at 0.34:
+        one lump, surely, its outline less so)."""
+        if not self._count_made():
             return "undetermined"
         return "none" if self._no_lump_chosen() else "lumps"
+
+    def _count_made(self) -> bool:
+        """As _choice_made, for the lump count: its posterior mass (every hypothesis that claims it) is at least
+        `confidence`, the chosen fit is adequate, and the newest reading did not just change the count."""
+        choice = self.choice
+        if choice is None or not self._enough_spots() or choice.count_weight < self.settings.confidence:
+            return False
+        return self._adequate() and choice.count_of(choice.chosen) == choice.count_of(self._chosen_before)
 
     def _no_lump_chosen(self) -> bool:
         """The choice is a model without lumps: `none`, or none on a background with a soft region."""
