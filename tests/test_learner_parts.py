@@ -1044,3 +1044,11 @@ def test_the_count_s_posterior_gathers_every_hypothesis_that_claims_it():
     assert choice.counts == pytest.approx({1: 0.94, 2: 0.04, 0: 0.01, "free-form": 0.01})
     assert choice.count_weight == pytest.approx(0.94)  # one lump, surely; its outline less so (0.56)
     assert [Choice.count_of(m) for m in ("none", "circles:3+soft:1", None)] == [0, 3, None]
+
+
+def test_the_expected_boundary_error_is_the_uncertain_area_over_the_boundary_s_length():
+    from palpd.learner.decision import _perimeter_mm
+
+    square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
+    assert _perimeter_mm(square) == pytest.approx(8.0)
+    assert _perimeter_mm(square[:1]) == 0.0

@@ -47,8 +47,21 @@ class Decision:
         if self.choice is None:
             return None
         soft = describe.soft_regions_of(self.chosen_fit())
-        return self.choice.as_dict() | {"unfelt_radius_mm": round(self.unfelt_radius_mm(), 1),
+        error = self.expected_boundary_error_mm()
+        return self.choice.as_dict() | {"count_weight": round(self.choice.count_weight, 4),
+                                        "expected_boundary_error_mm": None if error is None else round(error, 3),
+                                        "unfelt_radius_mm": round(self.unfelt_radius_mm(), 1),
                                         "undecided": self.undecided()} | ({"soft_regions": soft} if soft else {})
+
+    def expected_boundary_error_mm(self) -> float | None:
+        """The reported boundary's expected error in mm: the posterior expected misclassified area,
+        ∫ min(P, 1 − P) dA over the tissue, divided by the boundary's length (None without a lump). P is the
+        chosen hypothesis's P(lump), so the figure is what the user's tolerance (`tolerance_mm`) speaks of."""
+        lumps, p = self.lumps(), self.p_lump()
+        length = sum(_perimeter_mm(np.asarray(lump.boundary_mm)) for lump in lumps)
+        if p is None or length <= 0.0:
+            return None
+        return float(np.minimum(p, 1.0 - p).sum() * self.cell_area_mm2 / length)
 
     def undecided(self) -> str | None:
         """Why the verdict does not stand yet (None once it does), in the order `_count_made` asks:
@@ -557,3 +570,10 @@ def _sds(lump: LumpEstimate) -> float:
     if lump.boundary_sd_mm is not None:
         sds.append(lump.boundary_sd_mm)
     return max(sds)
+
+
+def _perimeter_mm(polygon: np.ndarray) -> float:
+    """The length of a closed polygon [[x, y], ...] (the last vertex joined to the first)."""
+    if len(polygon) < 2:
+        return 0.0
+    return float(np.hypot(*(np.roll(polygon, -1, axis=0) - polygon).T).sum())
