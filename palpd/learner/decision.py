@@ -84,7 +84,7 @@ class Decision:
                     f"confidence asked for ({self.settings.confidence:g}){runner_up}")
         if count != self.choice.count_of(self._chosen_before):
             return f"the count became {chosen} on the newest reading"
-        return None
+        return self._count_doubt()
 
     def unfelt_radius_mm(self) -> float:
         """What the count claim leaves open: a lump whose disc holds no reading is felt by none (a sharp edge is
@@ -342,9 +342,24 @@ class Decision:
         claims a count of lumps, so it stands once the count is decided, whichever shape the hypotheses
         that agree on it draw (a 3 x 3 raster over one lump weighed circles:1 at 0.66 and ellipse:1 at 0.34:
         one lump, surely, its outline less so)."""
-        if not self._count_made():
+        if not self._count_made() or self._count_doubt() is not None:
             return "undetermined"
         return "none" if self._no_lump_chosen() else "lumps"
+
+    def _count_doubt(self) -> str | None:
+        """Why readings not yet taken could still change the count, however its posterior weighs it now: the
+        stop rule's checks on the count (not on the outline), asked of every verdict, so that a scan whose
+        points were fixed beforehand (raster, random) or whose budget ran out claims no count the active scan
+        would have read on for. A raster of 36 over four lumps weighed circles:5 at 0.998, one lump false,
+        beside a hole between the lumps no reading had looked into (four-lumps' own active scan, at its budget
+        of 40 with the same kind of hole, is undetermined now too, its four lumps reported)."""
+        if self._hidden_lump() is not None:
+            return "readings above the chosen model hint together at a lump no hypothesis has"
+        if self._unfelt() is not None or self._rivals_unread_lump() is not None:
+            return "a lump that a rival hypothesis draws holds no reading yet"
+        if self._satellite_hole() is not None:
+            return "a hole beside the lumps found together could hide another"
+        return None
 
     def _count_made(self) -> bool:
         """As _choice_made, for the lump count: its posterior mass (every hypothesis that claims it) is at least
