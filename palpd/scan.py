@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import time
 from collections import Counter
+from functools import partial
 from typing import Callable
 
 from palpd import strategies
@@ -28,12 +29,17 @@ class FixedPlan:
 
     Planners answer next_probe() with a point or None when the scan should stop,
     and learn from observe(probe); an adaptive planner (the learner) does the same.
+    A fixed plan's readings are weighed by the learner all the same (`estimator`): the points do not
+    change with what is found, but what is reported is what the evidence decides, as in an active
+    scan, so that no strategy reports a lump the readings do not support.
     """
 
-    def __init__(self, points: list[tuple[float, float]], size_mm=None) -> None:
+    def __init__(self, points: list[tuple[float, float]], size_mm=None, make_estimator=None) -> None:
         self.points = list(points)
         self.size_mm = size_mm  # the tissue the points cover (what a "no lump" from them claims)
         self.expected_total = len(self.points)
+        self._make_estimator = make_estimator  # makes the estimator at the first reading (a learner costs ~0.3 s to build)
+        self.estimator = None
         self._next = 0
 
     def next_probe(self) -> tuple[float, float] | None:
@@ -43,7 +49,11 @@ class FixedPlan:
         return self.points[self._next - 1]
 
     def observe(self, probe: "Probe") -> None:
-        """A fixed plan does not change with what it finds."""
+        """The points do not change with what is found; the estimator learns from it."""
+        if self.estimator is None and self._make_estimator is not None:
+            self.estimator = self._make_estimator()
+        if self.estimator is not None:
+            self.estimator.observe(probe)
 
 
 def plan(strategy: str, size_mm, max_palpations: int, seed: int, settings=None):
@@ -52,15 +62,21 @@ def plan(strategy: str, size_mm, max_palpations: int, seed: int, settings=None):
     if settings is not None and settings.palpation.mode == "sliding":
         return _sliding_plan(strategy, size_mm, max_palpations, seed, settings)
     if strategy == "raster":
-        return FixedPlan(strategies.raster_points(size_mm, max_palpations), size_mm)
+        return FixedPlan(strategies.raster_points(size_mm, max_palpations), size_mm, partial(_learner_planner, size_mm, settings, seed))
     if strategy == "random":
-        return FixedPlan(strategies.random_points(size_mm, max_palpations, seed), size_mm)
+        points = strategies.random_points(size_mm, max_palpations, seed)
+        return FixedPlan(points, size_mm, partial(_learner_planner, size_mm, settings, seed))
     if strategy == "active":
-        from palpd.config import Settings
-        from palpd.learner import ActivePlanner
-
-        return ActivePlanner(size_mm, settings or Settings(), max_palpations, seed)
+        return _learner_planner(size_mm, settings, seed, max_palpations)
     raise UsageError(f"unknown strategy {strategy!r}; choose from {', '.join(strategies.STRATEGIES)}")
+
+
+def _learner_planner(size_mm, settings, seed: int, max_palpations: int = 0):
+    """The learner: the active strategy's planner, and the estimator of a fixed plan's readings."""
+    from palpd.config import Settings
+    from palpd.learner import ActivePlanner
+
+    return ActivePlanner(size_mm, settings or Settings(), max_palpations, seed)
 
 
 def _sliding_plan(strategy: str, size_mm, max_palpations: int, seed: int, settings):
@@ -68,7 +84,7 @@ def _sliding_plan(strategy: str, size_mm, max_palpations: int, seed: int, settin
 
     if strategy in ("raster", "random"):
         paths = slide.fixed_paths(strategy, size_mm, max_palpations, seed, settings.palpation.sliding_length_mm)
-        return FixedPlan(paths, size_mm)
+        return FixedPlan(paths, size_mm, partial(_learner_planner, size_mm, settings, seed))
     if strategy == "active":
         return slide.SlidingPlanner(size_mm, settings, max_palpations, seed)
     raise UsageError(f"unknown strategy {strategy!r}; choose from {', '.join(strategies.STRATEGIES)}")
@@ -121,8 +137,10 @@ def _press(bench: Bench, settings, palpation_settings, xy_mm) -> Probe:
 
 
 def _estimate(planner, probes: list[Probe], settings) -> tuple[list, str, dict | None]:
-    """(lumps, verdict, model): an adaptive planner's own (the learner decides by evidence); for a fixed
-    plan the §3.4 estimate, whose verdict is `lumps` or `none`, with no model choice behind it."""
+    """(lumps, verdict, model): what the learner decides from the readings, whether it chose the points
+    (active) or weighed a fixed plan's; without one the §3.4 estimate, whose verdict is `lumps` or
+    `none`, with no model choice behind it."""
+    planner = getattr(planner, "estimator", None) or planner
     if hasattr(planner, "lumps"):
         return planner.lumps(), planner.verdict(), planner.model()
     good = [pr for pr in probes if pr.fit is not None]
@@ -211,8 +229,9 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     }
     if failing:
         body["undetermined_reason"] = failing
-    if getattr(planner, "size_mm", None) is not None and model is None and verdict != "undetermined":
-        # a fixed plan's claim, as the learner's model states its own: how large a lump could lie unread
+    if isinstance(planner, FixedPlan) and planner.size_mm is not None and verdict != "undetermined":
+        # a fixed plan's claim, exactly (the learner's model states its own on its coverage cells, 2 mm apart):
+        # how large a lump could lie unread
         good = [pr.record.xy_mm for pr in probes if pr.fit is not None]
         body["unfelt_radius_mm"] = round(unfelt_radius_mm(good, planner.size_mm), 1)
     if p.mode == "sliding":

@@ -10,9 +10,9 @@
 Each row is `palpd scan --scene SCENE --strategy active` with default settings (simulated time, the
 real control and fit code, in this process): palpations, robot time, the verdict and the model the
 evidence chose (with its weight), and the errors against the scene's truth. With --raster-too, a raster
-scan of the same number of palpations is scored beside it (its §3.4 estimate). With --seeds, every
-scene once per seed (the scan's and the simulator's), then one summary row per scene: how often the
-count was right (every lump found, none false), palpations (median and most), the worst errors and IoU.
+scan of the same number of palpations is scored beside it (its readings weighed by the learner, as every
+fixed plan's are). With --seeds, every scene once per seed (the scan's and the simulator's), then one
+summary row per scene: how often the count was right (every lump found, none false), palpations (median and most), the worst errors and IoU.
 With --random, N scenes none of which ships, drawn from --random-seed (tissue size and stiffness, one to
 three lumps that do not touch, of any radius, depth and contrast in the ranges below, any sensor noise):
 the same table and one summary row, so that what the learner decides is tried beyond the scenes it was

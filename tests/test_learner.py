@@ -277,7 +277,7 @@ def test_a_choice_the_newest_reading_just_made_is_not_yet_a_verdict():
     learner.observe((5.0, 5.0), 0.8, 0.0004)  # a lump where flat tissue was expected
     assert learner.model()["chosen"] == "circles:1" and learner._confident() and learner._adequate()
     assert learner.verdict() == "undetermined"
-    assert learner.model()["undecided"] == "the choice became circles:1 on the newest reading"
+    assert learner.model()["undecided"] == "the count became circles:1 on the newest reading"
     for xy, k in [((7.0, 5.0), 0.8), ((3.0, 5.0), 0.75)]:
         learner.observe(xy, k, 0.0004)
     assert learner.model()["chosen"] == "circles:1" and learner.verdict() == "lumps"

@@ -127,6 +127,9 @@ def test_cli_scan_writes_report_and_plot(tmp_path, run_cli):
     assert report["scene"] == "paper" and report["palpations"] == 9 and len(report["probes"]) == 9
     # what the verdict claims: 3 x 3 at the edges and the middle leaves (±15, ±15) 21.2 mm from every reading
     assert report["unfelt_radius_mm"] == pytest.approx(21.2, abs=0.1)
+    # the learner weighs a fixed plan's readings too: the count it decides, on its coverage cells 2 mm apart
+    assert report["verdict"] == "lumps" and report["model"]["chosen"] in ("circles:1", "ellipse:1")
+    assert report["model"]["unfelt_radius_mm"] == pytest.approx(21.2, abs=2.0)
     assert "a lump under 21.2 mm in radius could lie unfelt between the readings" in result.stdout
     assert set(report["lumps"][0]) >= {"center_mm", "radius_mm", "center_sd_mm", "radius_sd_mm", "boundary_mm"}
     png = (tmp_path / "r.png").read_bytes()

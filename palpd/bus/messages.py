@@ -159,6 +159,12 @@ class ModelChoice(BaseModel):
     """Its posterior weight among the hypotheses compared."""
     runner_up: Optional[str] = None
     """The next most likely hypothesis (null when there was no other)."""
+    count_weight: Optional[float] = None
+    """The posterior mass of the chosen hypothesis's lump count: every hypothesis that claims as many lumps
+    (the verdict stands on it, whichever outline those hypotheses draw)."""
+    expected_boundary_error_mm: Optional[float] = None
+    """The reported boundary's expected error: the expected misclassified area ∫ min(P, 1 − P) dA under the chosen
+    hypothesis, divided by the boundary's length (null without a lump): what `tolerance_mm` speaks of."""
     unfelt_radius_mm: Optional[float] = None
     """The farthest any spot of the tissue lies from a reading: a lump of smaller radius could sit between the
     readings unfelt, so the count means "no other lump this large or larger"."""

@@ -141,7 +141,8 @@ def _verdict_line(report: dict) -> str:
     for soft in (model or {}).get("soft_regions") or []:  # no lump, but the map the user will look at has it
         (x, y), r = soft["center_mm"], soft["radius_mm"]
         text += f" (tissue {soft['softer']:g}x softer around ({x:.1f}, {y:.1f}), radius {r:.1f} mm)"
-    unfelt = (model or report).get("unfelt_radius_mm") if report["verdict"] != "undetermined" else None
+    unfelt = report.get("unfelt_radius_mm", (model or {}).get("unfelt_radius_mm"))  # a fixed plan's is exact
+    unfelt = None if report["verdict"] == "undetermined" else unfelt
     reach = "" if unfelt is None else f"; a lump under {unfelt:.1f} mm in radius could lie unfelt between the readings"
     if reach and report.get("strategy") == "active":  # the user's side of that trade, where the user meets it
         reach += " (--coverage-mm reads closer)"

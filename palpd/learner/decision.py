@@ -47,11 +47,24 @@ class Decision:
         if self.choice is None:
             return None
         soft = describe.soft_regions_of(self.chosen_fit())
-        return self.choice.as_dict() | {"unfelt_radius_mm": round(self.unfelt_radius_mm(), 1),
+        error = self.expected_boundary_error_mm()
+        return self.choice.as_dict() | {"count_weight": round(self.choice.count_weight, 4),
+                                        "expected_boundary_error_mm": None if error is None else round(error, 3),
+                                        "unfelt_radius_mm": round(self.unfelt_radius_mm(), 1),
                                         "undecided": self.undecided()} | ({"soft_regions": soft} if soft else {})
 
+    def expected_boundary_error_mm(self) -> float | None:
+        """The reported boundary's expected error in mm: the posterior expected misclassified area,
+        ∫ min(P, 1 − P) dA over the tissue, divided by the boundary's length (None without a lump). P is the
+        chosen hypothesis's P(lump), so the figure is what the user's tolerance (`tolerance_mm`) speaks of."""
+        lumps, p = self.lumps(), self.p_lump()
+        length = sum(_perimeter_mm(np.asarray(lump.boundary_mm)) for lump in lumps)
+        if p is None or length <= 0.0:
+            return None
+        return float(np.minimum(p, 1.0 - p).sum() * self.cell_area_mm2 / length)
+
     def undecided(self) -> str | None:
-        """Why the model choice does not stand yet (None once it does), in the order `_choice_made` asks:
+        """Why the verdict does not stand yet (None once it does), in the order `_count_made` asks:
         what an `undetermined` verdict tells the user beyond "the budget ran out". A choice that is
         confident but explains the readings no better than the tissue's texture allows (`_adequate`) is
         the case where more palpations or a lower confidence would not settle it, and so it is named."""
@@ -64,12 +77,14 @@ class Decision:
             return (f"{chosen}, the likeliest, misses its readings by {self._chosen_noise_sd() / self.noise_floor:.1f}x "
                     f"their noise floor, more than the tissue's texture accounts for: no hypothesis on offer "
                     f"explains them (a shape, edge profile or background the models do not draw)")
-        if weight < self.settings.confidence:
+        count = self.choice.count_of(chosen)
+        if self.choice.count_weight < self.settings.confidence:
             runner_up = f"; runner-up {self.choice.runner_up}" if self.choice.runner_up else ""
-            return f"{chosen} weighs {weight:.3f}, under the confidence asked for ({self.settings.confidence:g}){runner_up}"
-        if chosen != self._chosen_before:
-            return f"the choice became {chosen} on the newest reading"
-        return None
+            return (f"{chosen} weighs {weight:.3f} and its count of lumps {self.choice.count_weight:.3f}, under the "
+                    f"confidence asked for ({self.settings.confidence:g}){runner_up}")
+        if count != self.choice.count_of(self._chosen_before):
+            return f"the count became {chosen} on the newest reading"
+        return self._count_doubt()
 
     def unfelt_radius_mm(self) -> float:
         """What the count claim leaves open: a lump whose disc holds no reading is felt by none (a sharp edge is
@@ -323,10 +338,36 @@ class Decision:
         return None if near.any() else centre
 
     def verdict(self) -> str:
-        """`lumps`, `none`, or `undetermined` when the evidence has not decided between them."""
-        if not self._choice_made():
+        """`lumps`, `none`, or `undetermined` when the evidence has not decided between them: the verdict
+        claims a count of lumps, so it stands once the count is decided, whichever shape the hypotheses
+        that agree on it draw (a 3 x 3 raster over one lump weighed circles:1 at 0.66 and ellipse:1 at 0.34:
+        one lump, surely, its outline less so)."""
+        if not self._count_made() or self._count_doubt() is not None:
             return "undetermined"
         return "none" if self._no_lump_chosen() else "lumps"
+
+    def _count_doubt(self) -> str | None:
+        """Why readings not yet taken could still change the count, however its posterior weighs it now: the
+        stop rule's checks on the count (not on the outline), asked of every verdict, so that a scan whose
+        points were fixed beforehand (raster, random) or whose budget ran out claims no count the active scan
+        would have read on for. A raster of 36 over four lumps weighed circles:5 at 0.998, one lump false,
+        beside a hole between the lumps no reading had looked into (four-lumps' own active scan, at its budget
+        of 40 with the same kind of hole, is undetermined now too, its four lumps reported)."""
+        if self._hidden_lump() is not None:
+            return "readings above the chosen model hint together at a lump no hypothesis has"
+        if self._unfelt() is not None or self._rivals_unread_lump() is not None:
+            return "a lump that a rival hypothesis draws holds no reading yet"
+        if self._satellite_hole() is not None:
+            return "a hole beside the lumps found together could hide another"
+        return None
+
+    def _count_made(self) -> bool:
+        """As _choice_made, for the lump count: its posterior mass (every hypothesis that claims it) is at least
+        `confidence`, the chosen fit is adequate, and the newest reading did not just change the count."""
+        choice = self.choice
+        if choice is None or not self._enough_spots() or choice.count_weight < self.settings.confidence:
+            return False
+        return self._adequate() and choice.count_of(choice.chosen) == choice.count_of(self._chosen_before)
 
     def _no_lump_chosen(self) -> bool:
         """The choice is a model without lumps: `none`, or none on a background with a soft region."""
@@ -544,3 +585,10 @@ def _sds(lump: LumpEstimate) -> float:
     if lump.boundary_sd_mm is not None:
         sds.append(lump.boundary_sd_mm)
     return max(sds)
+
+
+def _perimeter_mm(polygon: np.ndarray) -> float:
+    """The length of a closed polygon [[x, y], ...] (the last vertex joined to the first)."""
+    if len(polygon) < 2:
+        return 0.0
+    return float(np.hypot(*(np.roll(polygon, -1, axis=0) - polygon).T).sum())

@@ -19,7 +19,7 @@ prior odds): the simplest adequate hypothesis wins unless the data ask for more.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -59,9 +59,24 @@ class Choice:
     weight: float  # its share among the hypotheses whose lumps are apart (what may be chosen)
     runner_up: str | None  # the next of those
     weights: dict[str, float]  # every supported hypothesis's, apart or not: the rivals
+    counts: dict = field(default_factory=dict)  # posterior of the lump count (int; "free-form": the map's own)
 
     def as_dict(self) -> dict:
         return {"chosen": self.chosen, "weight": round(self.weight, 4), "runner_up": self.runner_up}
+
+    @staticmethod
+    def count_of(name: str | None):
+        """The lump count a hypothesis claims (shapes.Family.name): its K, 0 for `none` with or without a
+        soft region, "free-form" for the map, which counts its own regions; None for no hypothesis."""
+        if not name or name == "free-form":
+            return name or None
+        lumps = name.split("+")[0]
+        return 0 if lumps == "none" else int(lumps.split(":")[1])
+
+    @property
+    def count_weight(self) -> float:
+        """The posterior mass of the chosen hypothesis's count: all the hypotheses that agree on it."""
+        return self.counts.get(self.count_of(self.chosen), self.weight)
 
 
 class Hypotheses:
@@ -423,7 +438,10 @@ class Hypotheses:
         chosen = separate[0]
         self.unfelt_centre = self._unfelt_centre(candidates[chosen], obs)
         share = sum(weights[m] for m in separate)
-        return Choice(chosen, weights[chosen] / share, separate[1] if len(separate) > 1 else None, weights)
+        counts: dict = {}
+        for m in separate:
+            counts[Choice.count_of(m)] = counts.get(Choice.count_of(m), 0.0) + weights[m] / share
+        return Choice(chosen, weights[chosen] / share, separate[1] if len(separate) > 1 else None, weights, counts)
 
     def _unfelt_centre(self, chosen_log_evidence: float, obs: Observations) -> np.ndarray | None:
         """The centre of a lump no reading feels yet, in a hypothesis the evidence prefers to the chosen
