@@ -45,6 +45,7 @@ class SensorHealth:
         self.retares = 0
         self.max_drift_n = 0.0  # the largest drift found at an approach since start-up
         self.recovering = False  # set by the supervisor while the arm is brought back from wherever it lay
+        self.hand_guided = False  # set by the supervisor while a person moves the arm (a manual session)
         self.reset()
 
     def reset(self) -> None:
@@ -61,7 +62,8 @@ class SensorHealth:
 
     def _mismatch(self, tick) -> Fault | None:
         """The normal force read against the normal force the motors push with (both low-passed)."""
-        if tick.setpoint_mm is None or self.recovering:  # nothing pushes yet, or the arm is pulled off the tissue
+        if tick.setpoint_mm is None or self.recovering or self.hand_guided:  # nothing pushes yet, the arm is pulled
+            # off the tissue, or a person's hand pushes it (the motors only hold up its weight)
             return None
         read_n, pushed_n = tick.force_tissue_n[2], -tick.commanded_force_n[2]
         self._mismatch_n += (read_n - pushed_n - self._mismatch_n) * self._smoothing

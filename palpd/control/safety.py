@@ -124,6 +124,12 @@ class SafetySupervisor:
         for monitor in self.monitors:
             monitor.recovering = on
 
+    def guided_by_hand(self, on: bool) -> None:
+        """Monitors that judge a palpation stand aside while a person moves the arm (a manual session): the
+        motors push nothing there, and the hand, not the tissue, sets the force and the depth."""
+        for monitor in self.monitors:
+            monitor.hand_guided = on
+
     def widen_to(self, tick) -> None:
         """Accept the pose the arm is in now as inside the limits (recovering it from wherever it came to
         rest after a fault); reset() narrows them again."""

@@ -190,6 +190,8 @@ class ManualSession:
     """A servo task that commands no motion (gravity compensation and damping only) while a person
     palpates, and collects the palpations the segmenter finds; done after duration_s."""
 
+    follows_hand = True  # the safety monitors that judge a robot's palpation stand aside (control.safety)
+
     def __init__(self, segmenter: Segmenter, duration_s: float) -> None:
         self.segmenter, self.duration_s = segmenter, duration_s
         self.segments: list[Segment] = []

@@ -154,6 +154,7 @@ class ServoLoop(Sensing, Stopping):
         widen = getattr(task, "from_anywhere", False)
         wind_down = getattr(task, "wind_down", None)
         declares_jumps = hasattr(task, "jumped")  # a palpation's release (control.palpation): no speed in it
+        self.supervisor.guided_by_hand(getattr(task, "follows_hand", False))
         try:
             while not task.done:
                 started = time.perf_counter()

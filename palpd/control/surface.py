@@ -39,6 +39,7 @@ class SurfaceGuard:
         self.limit_mm = deepest_press_mm(palpation) + safety.indentation_margin_mm
         self.contacts: list[tuple[float, float, float]] = []
         self.recovering = False  # set by the supervisor while the arm is brought up from wherever it lay
+        self.hand_guided = False  # set by the supervisor while a person moves the arm (a manual session)
 
     def reset(self) -> None:
         """A pause or a reset does not move the tissue: what was learned stays (forget() at a scan's start)."""
@@ -67,7 +68,7 @@ class SurfaceGuard:
 
     def check(self, tick) -> Fault | None:
         below_mm = tick.floor_z_mm + self.limit_mm - tick.tip_mm[2]
-        if below_mm <= self.limit_mm or self.recovering:
+        if below_mm <= self.limit_mm or self.recovering or self.hand_guided:
             return None
         return Fault("indentation", f"tip {below_mm:.2f} mm below the tissue surface, deeper than the "
                      f"{self.limit_mm:.2f} mm any palpation may go (depth plus safety.indentation_margin_mm), "

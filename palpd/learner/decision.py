@@ -350,15 +350,13 @@ class Decision:
         """Why readings not yet taken could still change the count, however its posterior weighs it now: the
         stop rule's checks on the count (not on the outline), asked of every verdict, so that a scan whose
         points were fixed beforehand (raster, random) or whose budget ran out claims no count the active scan
-        would have read on for. A raster of 36 over four lumps weighed circles:5 at 0.998, one lump false,
-        beside a hole between the lumps no reading had looked into (four-lumps' own active scan, at its budget
-        of 40 with the same kind of hole, is undetermined now too, its four lumps reported)."""
+        would have read on for."""
         if self._hidden_lump() is not None:
             return "readings above the chosen model hint together at a lump no hypothesis has"
         if self._unfelt() is not None or self._rivals_unread_lump() is not None:
             return "a lump that a rival hypothesis draws holds no reading yet"
-        if self._satellite_hole() is not None:
-            return "a hole beside the lumps found together could hide another"
+        # Not a hole beside clustered lumps (_satellite_hole): a lump smaller than the report's
+        # unfelt_radius_mm between the readings is outside what the count claims, and the report says so.
         return None
 
     def _count_made(self) -> bool:
