@@ -39,6 +39,16 @@ def run_cli(tmp_path):
     return run
 
 
+def load_script(name: str):
+    """scripts/NAME.py as a module (the scripts are not part of the package)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def assert_one_line_error(result: subprocess.CompletedProcess, *fragments: str) -> None:
     """A failed command says what is wrong in one line, with no traceback."""
     assert result.returncode != 0, result.stdout

@@ -1,20 +1,15 @@
 """The real phantom scene (config/scenes/garg-phantom.toml): dVRK readings kept as they were read."""
-import importlib.util
-
 import numpy as np
 import pytest
 
-from conftest import ROOT, SCENES
+from conftest import SCENES, load_script
 from drivers.sim.scene import load_scene, load_stiffness_map
 from drivers.sim.tissue import StiffnessField
 from palpd import metrics
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location("make_real_map", ROOT / "scripts" / "make_real_map.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("make_real_map")
 
 
 def test_readings_become_stiffness_in_proportion_past_the_offset():

@@ -2,7 +2,7 @@ import math
 
 import pytest
 
-from conftest import ROOT, SCENES, assert_one_line_error
+from conftest import ROOT, SCENES, assert_one_line_error, load_script
 from drivers.sim.scene import SceneError, load_scene, truth_lumps
 from drivers.sim.tissue import StiffnessField
 
@@ -130,13 +130,7 @@ def test_an_active_scan_of_a_tissue_out_of_reach_is_refused_before_it_is_planned
 
 
 def active_scenes_script():
-    """scripts/active_scenes.py as a module (a script, not part of the package)."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("active_scenes", ROOT / "scripts" / "active_scenes.py")
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
-    return script
+    return load_script("active_scenes")
 
 
 def test_the_random_scenes_the_learner_is_tried_on_are_valid_reproducible_and_keep_their_lumps_apart():
