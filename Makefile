@@ -8,10 +8,12 @@ OUT := out
 
 # setuptools notes every editable install of a mapped layout (config/ ships as palpd.share) at length:
 # informational only, so hidden; anything else it says about the packaging still shows.
+# -qq: errors only. A first `make run` printed pip's warnings about the host's own package-index settings
+# (dozens of "Location ... is ignored"), nothing about palpd, before the scan's first line.
 $(BIN)/palpd: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install -qq --upgrade pip
+	PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip install -qq -e '.[test]'
 	touch $@
 
 run: $(BIN)/palpd
