@@ -7,9 +7,8 @@ OUT := out
 .PHONY: run test reproduce figures docs clean
 
 # setuptools notes every editable install of a mapped layout (config/ ships as palpd.share) at length:
-# informational only, so hidden; anything else it says about the packaging still shows.
-# -qq: errors only. A first `make run` printed pip's warnings about the host's own package-index settings
-# (dozens of "Location ... is ignored"), nothing about palpd, before the scan's first line.
+# informational only, so hidden. pip at -qq says only errors: a first `make run` printed its warnings about
+# the host's own package-index settings (dozens of "Location ... is ignored"), nothing about palpd, first.
 $(BIN)/palpd: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -qq --upgrade pip
