@@ -18,7 +18,9 @@ def run(args) -> int:
     for name in scene_names():
         path = shipped_scene(name)
         scene = load_scene(path)
-        rows.append({"name": name, "lumps": len(scene.lump), "size_mm": list(scene.tissue.size_mm),
+        kind = "3-D" if scene.tissue.is_3d else "2-D"
+        rows.append({"name": name, "kind": kind, "lumps": len(scene.inclusion if scene.tissue.is_3d else scene.lump),
+                     "size_mm": list(scene.tissue.size_mm),
                      "about": _first_comment(path), "path": str(path)})
     if args.json:
         print(json.dumps(rows, indent=2))
@@ -26,7 +28,7 @@ def run(args) -> int:
     width = max(len(row["name"]) for row in rows)
     for row in rows:
         w, h = row["size_mm"]
-        print(f"{row['name']:{width}s}  {row['lumps']} lump(s), {w:g} x {h:g} mm  {row['about']}")
+        print(f"{row['name']:{width}s}  {row['kind']}, {row['lumps']} lump(s), {w:g} x {h:g} mm  {row['about']}")
     return 0
 
 
