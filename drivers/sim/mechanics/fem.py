@@ -82,15 +82,18 @@ class SurfaceCompliance:
 
     def _assemble(self, modulus_kpa, poisson: float):
         from skfem import BilinearForm, asm
-        from skfem.helpers import ddot, sym_grad, trace
+        from skfem.helpers import ddot, div, grad, transpose
 
         lam_per_e = poisson / ((1 + poisson) * (1 - 2 * poisson))
         mu_per_e = 1.0 / (2 * (1 + poisson))
 
         @BilinearForm
         def elasticity(u, v, w):
-            eps_u, eps_v = sym_grad(u), sym_grad(v)
-            return w.e * (lam_per_e * trace(eps_u) * trace(eps_v) + 2 * mu_per_e * ddot(eps_u, eps_v))
+            # 2 eps(u):eps(v) = grad u:grad v + grad u:grad v^T, without building the symmetric parts
+            # (sym_grad's copies took 2/3 of the assembly time)
+            gu, gv = grad(u), grad(v)
+            shear = ddot(gu, gv) + ddot(gu, transpose(gv))
+            return w.e * (lam_per_e * div(u) * div(v) + mu_per_e * shear)
 
         points = self.basis.mapping.F(self.basis.X)  # (3, elements, quadrature points), mm
         if callable(modulus_kpa):
