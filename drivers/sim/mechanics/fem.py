@@ -1,7 +1,9 @@
 """The elastic layer by finite elements (scikit-fem), condensed onto its surface.
 
-Quadratic hexahedra (27 nodes): linear elements lock as Poisson's ratio nears 0.5 and read a near-incompressible
-tissue far too stiff; quadratic ones stay within a few per cent up to nu = 0.49 (the validation bench checks it).
+Quadratic tetrahedra (10 nodes): linear elements lock as Poisson's ratio nears 0.5 and read a near-incompressible
+tissue far too stiff; quadratic ones do far less (the validation checks it). Not hexahedra of 27 nodes: scikit-fem
+evaluates the form once per pair of an element's basis functions, 6 561 pairs against 900, and assembly was
+~50 ms per hex27 element here.
 The layer is bonded to a rigid base (every displacement zero at z = -h), its sides and top are free. The surface
 compliance is the vertical displacement of surface nodes under a unit vertical load at one of them: one back-solve
 of the factorised stiffness per loaded node (Green's functions, James & Pai 1999).
@@ -56,10 +58,11 @@ class SurfaceCompliance:
     def __init__(self, grid: Grid, modulus_kpa, poisson: float, symmetric_quarter: bool = False) -> None:
         """modulus_kpa: a number or f(x, y, z) -> kPa at points (3, ...) in mm (inclusions)."""
         from scipy.sparse.linalg import splu
-        from skfem import Basis, ElementHex2, ElementVector, MeshHex, condense
+        from skfem import Basis, ElementTetP2, ElementVector, MeshTet
 
-        mesh = MeshHex.init_tensor(grid.xs, grid.ys, grid.zs)
-        self.basis = Basis(mesh, ElementVector(ElementHex2()))
+        mesh = MeshTet.init_tensor(grid.xs, grid.ys, grid.zs)
+        # strains of P2 are linear on a straight tetrahedron: order 2 integrates the stiffness exactly
+        self.basis = Basis(mesh, ElementVector(ElementTetP2()), intorder=2)
         stiffness = self._assemble(modulus_kpa, poisson)
         locs = self.basis.doflocs
         fixed = np.isclose(locs[2], grid.zs[0])
