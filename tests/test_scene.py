@@ -241,3 +241,61 @@ def test_the_step_maps_the_learner_is_tried_on_load_and_hold_their_inclusions(tm
         assert len(truth) == (2 if name == "two" else 1), (name, truth)
     (disc,) = metrics.scene_truth(scenes["d6"])
     assert math.dist(disc["center_mm"], (-8.0, 6.0)) < 0.3 and disc["radius_mm"] == pytest.approx(6.0, abs=0.5)
+
+
+LAYER = 'name = "x"\n[tissue]\nthickness_mm = 20\nmodulus_kpa = 15\n'
+SPHERE = '[[inclusion]]\nshape = "sphere"\ncenter_mm = [0, 0, 8]\nradius_mm = 5\nmodulus_kpa = 150\n'
+
+
+@pytest.mark.parametrize("text, message", [
+    (LAYER + SPHERE.replace('"sphere"', '"cone"'), "inclusion.0.shape: Input should be 'sphere', 'ellipsoid', 'cylinder' or 'box'"),
+    (LAYER + SPHERE.replace("radius_mm = 5\n", ""), "a sphere needs radius_mm"),
+    (LAYER + SPHERE.replace('"sphere"', '"box"'), "a box needs size_mm"),
+    (LAYER + SPHERE.replace('"sphere"', '"cylinder"'), "a cylinder needs length_mm"),
+    (LAYER + SPHERE + "size_mm = [1, 2, 3]\n", "a sphere takes radius_mm, not size_mm"),
+    (LAYER + SPHERE.replace("[0, 0, 8]", "[40, 0, 8]"), "inclusion 0: its centre (40, 0) mm lies off the 60 x 60 mm tissue"),
+    (LAYER + SPHERE.replace("[0, 0, 8]", "[0, 0, 18]"), "inclusion 0: it reaches 23 mm deep, below the 20 mm layer"),
+    (LAYER + SPHERE.replace("[0, 0, 8]", "[0, 0, 2]"), "inclusion 0: its top is 3 mm above the surface"),
+    (LAYER + SPHERE.replace("modulus_kpa = 150", "modulus_kpa = -1"), "inclusion.0.modulus_kpa: Input should be greater than 0"),
+    ('name = "x"\n[tissue]\nthickness_mm = 20\n', "a 3-D tissue (tissue.thickness_mm) needs tissue.modulus_kpa"),
+    ('name = "x"\n' + SPHERE, "[[inclusion]] bodies need a 3-D tissue: give tissue.thickness_mm"),
+    ('name = "x"\n[tissue]\nmodulus_kpa = 15\n', "tissue.modulus_kpa is for a 3-D tissue"),
+    (LAYER + "stiffness_n_per_mm = 0.1\n", "tissue.stiffness_n_per_mm belong to a 2-D scene"),
+    (LAYER + LUMP, "[[lump]] belong to a 2-D scene"),
+    (LAYER + "poisson = 0.5\n", "tissue.poisson: Input should be less than or equal to 0.495"),
+    (LAYER + "[probe]\ntip_radius_mm = 0\n", "probe.tip_radius_mm: Input should be greater than 0"),
+])
+def test_invalid_3d_scenes_are_rejected_with_one_clear_line(tmp_path, text, message):
+    path = scene_file(tmp_path, text)
+    with pytest.raises(SceneError) as error:
+        load_scene(path)
+    assert str(error.value).startswith(f"{path}: ") and "\n" not in str(error.value)
+    assert message in str(error.value)
+
+
+def test_a_3d_scene_truth_is_each_stiff_inclusion_footprint_with_the_depth_of_its_top(tmp_path):
+    sphere = load_scene(SCENES / "sphere-3d.toml")
+    assert sphere.tissue.is_3d and sphere.probe.tip_radius_mm == 2.5
+    [truth] = truth_lumps(sphere)
+    assert truth["center_mm"] == [7.5, -4.0] and truth["radius_mm"] == 5.0 and truth["depth_mm"] == 3.0
+    rod = 'shape = "cylinder"\ncenter_mm = [0, 0, 8]\nradius_mm = 2\nlength_mm = 10\nangle_deg = 30\nmodulus_kpa = 90\n'
+    box = 'shape = "box"\ncenter_mm = [5, 5, 6]\nsize_mm = [4, 9, 2]\nmodulus_kpa = 10\n'  # softer: not a lump
+    scene = load_scene(scene_file(tmp_path, LAYER + "[[inclusion]]\n" + rod + "[[inclusion]]\n" + box))
+    [truth] = truth_lumps(scene)
+    assert truth["depth_mm"] == 6.0 and truth["radius_mm"] == pytest.approx(math.sqrt(40 / math.pi))
+
+
+def test_an_inclusion_holds_the_points_of_its_turned_shape():
+    import numpy as np
+
+    from drivers.sim.bodies import Inclusion
+
+    rod = Inclusion(shape="cylinder", center_mm=(0, 0, 5), radius_mm=1, length_mm=10, angle_deg=90, modulus_kpa=50)
+    inside = rod.contains(np.array([0.0, 4.0, 0.0]), np.array([4.0, 0.0, 4.0]), np.array([5.0, 5.0, 7.0]))
+    assert inside.tolist() == [True, False, False]  # turned 90 degrees it runs along y, 1 mm round
+
+
+def test_the_simulator_refuses_a_3d_scene_it_cannot_compute_yet(run_cli):
+    result = run_cli("scan", "--scene", "sphere-3d", "--max-palpations", "2")
+    assert result.returncode == 78 and "3-D tissue" in result.stderr
+    assert_one_line_error(result)

@@ -10,6 +10,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from drivers.errors import DriverInitializationError, describe_validation_error
 from drivers.phantom.model import SPAN_MM
+from drivers.sim.bodies import Inclusion, Probe, check_inclusions_fit
 from drivers.tomlfile import read_toml
 
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -37,6 +38,14 @@ class Tissue(_Strict):
     friction: Annotated[float, Field(ge=0.0, le=2.0)] = 0.0  # sliding (Coulomb) friction: lateral / normal force
     # the felt field from measured samples, a CSV x_mm,y_mm,stiffness_n_per_mm (path relative to the scene)
     map: Optional[str] = None
+    thickness_mm: Optional[Annotated[float, Field(gt=0, le=200, allow_inf_nan=False)]] = None  # makes it 3-D
+    modulus_kpa: Optional[Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)]] = None
+    # 0.5 itself is incompressible, which a displacement formulation cannot compute
+    poisson: Annotated[float, Field(ge=0.0, le=0.495, allow_inf_nan=False)] = 0.48
+
+    @property
+    def is_3d(self) -> bool:
+        return self.thickness_mm is not None
 
 
 class Lump(_Strict):
@@ -75,6 +84,29 @@ class Scene(_Strict):
     sensor: Sensor = Sensor()
     placement: Placement = Placement()
     faults: dict[FaultKind, FaultAt] = {}  # [faults] sensor_drift = {at_s = 5.0, value = -0.5}
+    inclusion: list[Inclusion] = []  # 3-D scenes: elastic bodies inside the layer
+    probe: Probe = Probe()
+
+    @model_validator(mode="after")
+    def _one_kind_of_tissue(self):
+        tissue, given = self.tissue, self.tissue.model_fields_set
+        if not tissue.is_3d:
+            for name in ("modulus_kpa", "poisson"):
+                if name in given:
+                    raise ValueError(f"tissue.{name} is for a 3-D tissue: give tissue.thickness_mm too")
+            if self.inclusion:
+                raise ValueError("[[inclusion]] bodies need a 3-D tissue: give tissue.thickness_mm "
+                                 "(a 2-D scene's lumps are [[lump]])")
+            return self
+        if tissue.modulus_kpa is None:
+            raise ValueError("a 3-D tissue (tissue.thickness_mm) needs tissue.modulus_kpa")
+        mixed = [name for name in ("stiffness_n_per_mm", "exponent", "damping_n_s_per_mm", "map") if name in given]
+        if mixed or self.lump:
+            what = ", ".join(f"tissue.{n}" for n in mixed) or "[[lump]]"
+            raise ValueError(f"{what} belong to a 2-D scene; a 3-D tissue is set by thickness_mm, modulus_kpa "
+                             "and poisson, its lumps are [[inclusion]] bodies")
+        check_inclusions_fit(self.inclusion, tissue.size_mm, tissue.thickness_mm)
+        return self
 
     @model_validator(mode="after")
     def _lumps_touch_the_tissue(self):
@@ -170,10 +202,12 @@ def _map_row(path: Path, line: int, row: dict) -> tuple[float, float, float]:
 
 
 def truth_lumps(scene: Scene) -> list[dict]:
-    """The scene's lumps as placed on the bench (after its rotation), in the tissue frame: those stiffer than
+    """The scene's lumps (or a 3-D scene's inclusions, as their footprints) as placed on the bench (after its rotation), in the tissue frame: those stiffer than
     the tissue (an inclusion as soft or softer, a cyst or fat, is tissue to palpate, not a lump to find)."""
     from drivers.geometry import rotate_xy
 
+    if scene.tissue.is_3d:
+        return _truth_inclusions(scene)
     return [
         {
             "center_mm": list(rotate_xy(*lump.center_mm, scene.placement.rotation_deg)),
@@ -183,4 +217,22 @@ def truth_lumps(scene: Scene) -> list[dict]:
         }
         for lump in scene.lump
         if lump.stiffness_n_per_mm > scene.tissue.stiffness_n_per_mm
+    ]
+
+
+def _truth_inclusions(scene: Scene) -> list[dict]:
+    """Each inclusion stiffer than the layer: its centre, the radius of a circle as large as its widest
+    horizontal cross-section, and depth_mm, where its top lies below the surface."""
+    from drivers.geometry import rotate_xy
+
+    return [
+        {
+            "center_mm": list(rotate_xy(body.center_mm[0], body.center_mm[1], scene.placement.rotation_deg)),
+            "radius_mm": body.equivalent_radius_mm(),
+            "depth_mm": body.top_depth_mm(),
+            "modulus_kpa": body.modulus_kpa,
+            "shape": body.shape,
+        }
+        for body in scene.inclusion
+        if body.modulus_kpa > scene.tissue.modulus_kpa
     ]

@@ -17,7 +17,7 @@ from drivers.phantom import model
 from drivers.sim.arm import SimArm
 from drivers.sim.faults import SimFaults
 from drivers.sim.nano17 import SimNano17
-from drivers.sim.scene import Scene
+from drivers.sim.scene import Scene, SceneError
 from drivers.sim.tissue import StiffnessField, hunt_crossley_n, sliding_friction_n
 
 PHYSICS_STEP_S = 0.0005
@@ -31,6 +31,9 @@ class SimWorld:
     """Advances lazily: whoever reads it first after the clock moved pays for the physics."""
 
     def __init__(self, scene: Scene, clock, seed: int = 0) -> None:
+        if scene.tissue.is_3d:  # the felt-stiffness field would silently read it as the default 2-D tissue
+            raise SceneError(f"scene {scene.name!r} is a 3-D tissue (tissue.thickness_mm); the simulator does not "
+                             "compute 3-D mechanics yet (issue 49): use a 2-D scene")
         self.scene = scene
         self.clock = clock
         self.frame = TissueFrame(tuple(v / 1000.0 for v in scene.placement.origin_mm))

@@ -21,17 +21,19 @@ def run(args) -> int:
     width = max(len(row["name"]) for row in rows)
     for row in rows:
         w, h = row["size_mm"]
-        print(f"{row['name']:{width}s}  {_what(row)}, {w:g} x {h:g} mm  {row['about']}")
+        print(f"{row['name']:{width}s}  {row['kind']}, {_what(row)}, {w:g} x {h:g} mm  {row['about']}")
     return 0
 
 
 def _row(name: str, path, scene) -> dict:
-    """A scene's summary. Its lumps are those stiffer than the tissue (as the scan's truth counts them); a
-    measured map's felt field is the map, whose lumps the scene's [[lump]] tables (none) do not say."""
+    """A scene's summary: 2-D (a felt stiffness field) or 3-D (an elastic layer with inclusions). Its lumps are
+    those stiffer than the tissue (as the scan's truth counts them); a measured map's felt field is the map, whose lumps the scene's [[lump]] tables (none) do not say."""
     from drivers.sim.scene import truth_lumps
 
     lumps = None if scene.tissue.map else len(truth_lumps(scene))
-    return {"name": name, "lumps": lumps, "softer": len(scene.lump) - (lumps or 0),
+    bodies = scene.inclusion if scene.tissue.is_3d else scene.lump
+    return {"name": name, "kind": "3-D" if scene.tissue.is_3d else "2-D", "lumps": lumps,
+            "softer": len(bodies) - (lumps or 0),
             "map": scene.tissue.map is not None, "size_mm": list(scene.tissue.size_mm),
             "about": _first_comment(path), "path": str(path)}
 
