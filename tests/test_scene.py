@@ -273,8 +273,11 @@ def test_invalid_3d_scenes_are_rejected_with_one_clear_line(tmp_path, text, mess
     assert message in str(error.value)
 
 
+SCENES_3D = ROOT / "docs" / "examples" / "scenes-3d"  # not shipped until the simulator computes them (issue 49)
+
+
 def test_a_3d_scene_truth_is_each_stiff_inclusion_footprint_with_the_depth_of_its_top(tmp_path):
-    sphere = load_scene(SCENES / "sphere-3d.toml")
+    sphere = load_scene(SCENES_3D / "sphere-3d.toml")
     assert sphere.tissue.is_3d and sphere.probe.tip_radius_mm == 2.5
     [truth] = truth_lumps(sphere)
     assert truth["center_mm"] == [7.5, -4.0] and truth["radius_mm"] == 5.0 and truth["depth_mm"] == 3.0
@@ -296,6 +299,6 @@ def test_an_inclusion_holds_the_points_of_its_turned_shape():
 
 
 def test_the_simulator_refuses_a_3d_scene_it_cannot_compute_yet(run_cli):
-    result = run_cli("scan", "--scene", "sphere-3d", "--max-palpations", "2")
+    result = run_cli("scan", "--scene", SCENES_3D / "sphere-3d.toml", "--max-palpations", "2")
     assert result.returncode == 78 and "3-D tissue" in result.stderr
     assert_one_line_error(result)
