@@ -24,7 +24,10 @@ from palpd.bus.messages import EVENT_MODELS, Event, FaultMsg
 from palpd.bus.replies import REPLY_MODELS, EstimateGetReply, Reply, ScanStartReply, StatusReply
 from palpd.errors import PalpdError
 
-DEFAULT_TIMEOUT_S = 3.0
+# How long a command waits for its reply. scan.start builds the scan's learner before it answers (~1.5 s of
+# CPU on a 2-core host, its imports the most): beside a busy process that passed 3 s, and palpctl said
+# "no reply" to a daemon that had started the scan. A daemon that is not there still fails within this.
+DEFAULT_TIMEOUT_S = 10.0
 SCAN_ENDED = ("ready", "fault", "stopped")
 FAULT_EVENT_WAIT_S = 0.5  # scan(wait=True): how long a fault event may trail the status that ended the scan
 

@@ -15,10 +15,8 @@ import time
 
 from palpd import __version__
 from palpd.bus.replies import ScanStartReply
-from palpd.client import Client, CommandRefused
+from palpd.client import DEFAULT_TIMEOUT_S, Client, CommandRefused
 from palpd.errors import PalpdError
-
-DEFAULT_TIMEOUT_S = 3.0
 
 
 def build_parser() -> argparse.ArgumentParser:
