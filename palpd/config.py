@@ -176,8 +176,8 @@ class ScanSettings(_Section):
 class LearnerSettings(_Section):
     """The online learner (--strategy active and `palpd learner`)."""
 
-    confidence: Annotated[float, Field(gt=0.5, lt=1.0)] = 0.9  # stop when the chosen hypothesis has this weight...
-    tolerance_mm: Annotated[float, Field(gt=0, le=100)] = 0.5  # ...and every centre/radius sd is at most this
+    confidence: Annotated[float, Field(gt=0.5, lt=1.0)] = 0.9  # stop when the lump count has this posterior mass...
+    tolerance_mm: Annotated[float, Field(gt=0, le=100)] = 0.5  # ...and the expected boundary error (mm) this
     max_palpations: Annotated[int, Field(ge=1, le=10000)] = 40
     initial_points: Annotated[int, Field(ge=0, le=1000)] = 8  # first design: points of the covering lattice
     grid_points: Annotated[int, Field(ge=11, le=401)] = 121  # candidate grid, per side

@@ -182,23 +182,44 @@ def iou(boundary_mm: list[list[float]], true: dict, size_mm=None) -> float:
 def region_iou(truth: list[dict], lumps: list[dict], size_mm) -> float:
     """IoU of all reported lump areas against all true ones over the palpable rectangle: a missed lump and a
     false one both cost area; no lump reported where there is none scores 1."""
+    reported, true, _ = _regions_on_tissue(truth, lumps, size_mm)
+    return _ratio(reported, true) if (reported | true).any() else 1.0
+
+
+def boundary_error_mm(truth: list[dict], lumps: list[dict], size_mm) -> float | None:
+    """The reported boundary's true error in mm, as the learner's expected one is stated: the area reported
+    wrongly (inside a lump and not reported, or reported and not inside one) over the palpable rectangle,
+    divided by the true boundary's length on it; None with no true lump on the tissue. The length is the
+    Cauchy-Crofton estimate from the grid: π/4 × the step × the grid's crossings of the boundary."""
+    reported, true, (step, shape) = _regions_on_tissue(truth, lumps, size_mm)
+    inside = true.reshape(shape)
+    crossings = np.count_nonzero(np.diff(inside, axis=0)) + np.count_nonzero(np.diff(inside, axis=1))
+    if not crossings:
+        return None
+    return float(np.count_nonzero(reported ^ true) * step / (math.pi / 4 * crossings))
+
+
+def _regions_on_tissue(truth: list[dict], lumps: list[dict], size_mm):
+    """(reported, true, (step, grid shape)): which points of a grid over the palpable rectangle lie inside a
+    reported lump and inside a true one."""
     half = np.asarray(size_mm, dtype=float) / 2
-    points = _grid(-half, half + IOU_GRID_MM)
+    points, step, shape = _grid(-half, half + IOU_GRID_MM, with_shape=True)
     reported = np.zeros(len(points), dtype=bool)
     for lump in lumps:
         reported |= PolygonPath(np.asarray(lump["boundary_mm"], dtype=float)).contains_points(points)
     true = np.zeros(len(points), dtype=bool)
     for lump in truth:
         true |= _inside_true(points, lump)
-    return _ratio(reported, true) if (reported | true).any() else 1.0
+    return reported, true, (step, shape)
 
 
-def _grid(low, high) -> np.ndarray:
+def _grid(low, high, with_shape: bool = False):
     # Coarser than IOU_GRID_MM only for a region larger than 250 mm square (a boundary gone astray), which would
     # otherwise need gigabytes
     step = max(IOU_GRID_MM, math.sqrt(float(np.prod(np.asarray(high) - np.asarray(low))) / MAX_GRID_POINTS))
     gx, gy = np.meshgrid(np.arange(low[0], high[0], step), np.arange(low[1], high[1], step))
-    return np.column_stack([gx.ravel(), gy.ravel()])
+    points = np.column_stack([gx.ravel(), gy.ravel()])
+    return (points, step, gx.shape) if with_shape else points
 
 
 def _inside_true(points: np.ndarray, true: dict) -> np.ndarray:

@@ -18,6 +18,8 @@ relative measurement noise where a real map would have one:
 - textured-plain.csv: plain tissue, no lump, with 5 % texture on a 2 mm grid;
 - touching-lumps.csv: touching-lumps' three lumps (5 mm, edges 2–4 mm apart, 6.7× the tissue, each with
   the power-law edge the simulator gives a lump 2 mm deep) as a 1 mm grid would measure them, 2 % noise;
+- c-shape.csv: a ring 8-16 mm out with a quarter of it open (a C), 5× the tissue; rounded-rectangle.csv: a
+  24 × 12 mm rectangle with 2 mm corners, 5× (issue 48: shapes no parametric family draws), 2 % noise on a 1 mm grid;
 - cone-lump.csv: a lump whose stiffness rises linearly to a point, 4.5× the tissue at its top, 16 mm
   from its top to where it meets the tissue (its half-height 8 mm out): tails that end, a top with no
   plateau, 2 % noise on a 1.5 mm grid.
@@ -101,6 +103,24 @@ def touching_lumps(xy: np.ndarray) -> np.ndarray:
 
 def cone_lump(xy: np.ndarray) -> np.ndarray:
     return TISSUE + (0.54 - TISSUE) * np.clip(1.0 - _distance(xy, -7.0, 5.0) / 16.0, 0.0, 1.0)
+
+
+def c_shape(xy: np.ndarray) -> np.ndarray:
+    """A ring 8-16 mm from (-1.5, 0) with its right quarter open (a C), 5× the tissue, its edge ~0.5 mm wide:
+    no disc, ellipse or few of them draws it."""
+    r = _distance(xy, -1.5, 0.0)
+    angle = np.degrees(np.abs(np.arctan2(xy[:, 1], xy[:, 0] + 1.5)))  # 0 along +x
+    inside = np.minimum(np.minimum(r - 8.0, 16.0 - r), (angle - 45.0) * np.radians(1.0) * r)  # > 0 in the C
+    return TISSUE + (0.62 - TISSUE) * _rise(inside, 0.25)
+
+
+def rounded_rectangle(xy: np.ndarray) -> np.ndarray:
+    """A 24 × 12 mm rectangle centred at (3, -2), corners rounded to 2 mm, 5× the tissue, its edge ~0.5 mm wide:
+    straight sides an ellipse only approximates."""
+    half = np.array([12.0, 6.0]) - 2.0
+    q = np.abs(xy - np.array([3.0, -2.0])) - half
+    outside = np.hypot(*np.maximum(q, 0.0).T) + np.minimum(np.max(q, axis=1), 0.0) - 2.0  # signed distance
+    return TISSUE + (0.62 - TISSUE) * _rise(-outside, 0.25)
 
 
 def _rise(signed: np.ndarray, width_mm: float) -> np.ndarray:
@@ -253,6 +273,10 @@ def main() -> None:
     xy = grid(1.5)
     noise = np.random.default_rng(13).normal(0.0, 0.02, len(xy))
     write("cone-lump.csv", xy, cone_lump(xy) * (1.0 + noise))
+    xy = grid(1.0)
+    noise = np.random.default_rng(14).normal(0.0, 0.02, (2, len(xy)))
+    write("c-shape.csv", xy, c_shape(xy) * (1.0 + noise[0]))
+    write("rounded-rectangle.csv", xy, rounded_rectangle(xy) * (1.0 + noise[1]))
 
 
 if __name__ == "__main__":

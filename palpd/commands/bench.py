@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import importlib
 
-BENCHMARKS: list[str] = ["loop", "stall", "learner", "tradeoff", "drivers", "hotpath", "extremes", "mechanics"]
+BENCHMARKS: list[str] = ["loop", "stall", "learner", "tradeoff", "calibration", "drivers", "hotpath", "extremes",
+                          "mechanics"]
 
 
 def add_parser(subparsers):

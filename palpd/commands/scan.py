@@ -17,10 +17,11 @@ def add_parser(subparsers):
                       help="press point by point, or slide along paths in contact (default discrete)")
     scan.add_argument("--max-palpations", type=int, metavar="N", help="budget (sliding: of paths)")
     scan.add_argument("--confidence", type=float, metavar="P",
-                      help="stop once the lump hypothesis the evidence chose has this weight, over 0.5 and under 1 "
-                           "(active; default 0.9)")
+                      help="stop once the count of lumps has this posterior mass, over 0.5 and under 1 "
+                           "(active; default 0.9): lower stops sooner")
     scan.add_argument("--tolerance-mm", type=float, metavar="T",
-                      help="...and every centre and radius has posterior sd at most T (active; default 0.5)")
+                      help="...and the boundary's expected error is at most T mm: the expected misread area over "
+                           "the boundary's length (active; default 0.5): looser stops sooner")
     scan.add_argument("--coverage-mm", type=float, metavar="MM",
                       help="...and no spot is farther than MM from a reading (active; default 18): a lump felt over "
                            "less than that could lie unfelt between the readings. Lower finds more small lumps "

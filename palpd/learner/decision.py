@@ -1,12 +1,9 @@
-"""What the learner answers from its chosen hypothesis: the lumps, the verdict, when to stop, where next.
+"""What the learner answers from its hypotheses: the lumps, the verdict, when to stop, where next.
 
-Stop rule, in the user's terms: the chosen hypothesis's weight is at least
-`confidence`, and every reported centre and radius (or axis) has posterior sd
-at most `tolerance_mm` (`none` has nothing to pin down). Never on no evidence:
-with fewer usable readings than the simplest lump model has parameters the
-learner keeps palpating, and a budget spent before the rule holds is the
-verdict `undetermined`, never "no lump". A choice is not made on the reading
-that made it: it must have been the choice one reading before too.
+The stop rule is `Decision.decided`, and its docstring states it: the count is decided, the boundary is
+known to the user's tolerance, and the readings are explained. Never on no evidence: with fewer usable
+readings than the simplest lump model has parameters the learner keeps palpating, and a budget spent
+before the rule holds is the verdict `undetermined`, never "no lump".
 """
 from __future__ import annotations
 
@@ -119,25 +116,49 @@ class Decision:
         return bool(np.any(sure & inside))
 
     def decided(self) -> bool:
-        """The stop rule holds: the model choice is confident, no spot of the tissue is unexplored,
-        each lump is pinned down by readings (coverage.py), what is reported has posterior sd within
-        the tolerance, no hole beside lumps found together could hide another, and no rival as good a
-        fit could overturn the choice with one reading."""
-        return self._stands() and self._satellite_hole() is None and self._decisive_spot() is None
+        """The stop rule. Stop when all three hold:
 
-    def _stands(self) -> bool:
-        """The stop rule holds but for the one reading a rival may still ask for (`_decisive_spot`,
-        looked for only once all else holds: it weighs every rival over the whole grid)."""
-        if not self._choice_made() or self._unexplored() is not None or self._unpinned() is not None:
+        (a) The count is decided. The posterior mass of the lump count, summed over every hypothesis that
+            claims it (hypotheses.Choice.count_weight), is at least `confidence`, on enough readings at
+            distinct spots, and the newest reading did not just change it (`_count_made`). That mass is
+            over the lumps the hypotheses draw, so it speaks for the count only where a lump would have
+            been felt: no lump could hide where nothing was read, no reading hints at a lump no hypothesis
+            has, no rival's lump holds no reading, and no one reading could overturn the count
+            (`_count_doubt`, looking ahead).
+        (b) The boundary is known to the tolerance: the expected boundary error, the posterior expected
+            misclassified area ∫ min(P, 1 − P) dA with P(lump) averaged over the hypotheses by their
+            weight, divided by the reported boundary's length, is at most `tolerance_mm`
+            (`expected_boundary_error_mm`; no boundary, nothing to bound). A lump's posterior is believed
+            once readings lie on it: its centre, its edge where its sd exceeds the tolerance, and its top
+            (`_unpinned`).
+        (c) The readings are explained (the posterior predictive check, the one guard against every model
+            being wrong): the chosen hypothesis explains the readings to their noise or the tissue's texture
+            (`_adequate`), predicted the newest within PREDICTED_SIGMA sd, and the newest reading (and the
+            one before) moved what is reported no further than its sds and the tolerance allowed
+            (`_settled`). When no hypothesis passes, the scan goes on, and a budget spent ends
+            `undetermined` with the reason (`undecided`).
+
+        The shape that draws the count (a circle or an ellipse) need not be decided: its doubt is in P, so in
+        (b). Looser tolerance or confidence stops sooner; tighter reads on.
+        """
+        return self._holds_now() and self._count_doubt(look_ahead=True) is None
+
+    def _holds_now(self) -> bool:
+        """The stop rule but for its look-ahead checks (a rival's decisive spot, a hole beside lumps found
+        together: each weighs the whole grid, so they are looked for only once all else holds)."""
+        return (self._count_made() and self._count_doubt() is None and self._boundary_known()
+                and self._readings_explained())
+
+    def _boundary_known(self) -> bool:
+        """(b) of the stop rule."""
+        if self._unpinned() is not None:
             return False
-        if self._hidden_lump() is not None or abs(self.surprise_sd) > PREDICTED_SIGMA or self._unfelt() is not None:
-            return False
-        if self._rivals_unread_lump() is not None:
-            return False
-        if not self._settled():
-            return False
-        tolerance = self.settings.tolerance_mm
-        return all(_sds(lump) <= tolerance for lump in self.lumps())
+        error = self.expected_boundary_error_mm()
+        return error is None or error <= self.settings.tolerance_mm
+
+    def _readings_explained(self) -> bool:
+        """(c) of the stop rule."""
+        return self._adequate() and abs(self.surprise_sd) <= PREDICTED_SIGMA and self._settled()
 
     def _settled(self) -> bool:
         """The newest reading moved no reported centre coordinate or radius (axis) by more than a posterior
@@ -166,8 +187,10 @@ class Decision:
         if fit is None or fit.family.k == 0:
             return True
         before = self._fit_before
-        if before is None or before.family != fit.family:
+        if before is None or before.family.k != fit.family.k:
             return False
+        if before.family != fit.family:  # another shape of the same count: its lumps moved within the tolerance
+            return _moved_within(_discs(before), _discs(fit), self.settings.tolerance_mm)
         rows = describe.quantities(before, self.size_mm)
         moved = np.abs(rows @ (fit.theta - before.theta))
         sd_before = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", rows, before.cov, rows), 0.0))
@@ -279,6 +302,8 @@ class Decision:
             fit = self.hypotheses.laplace(name) if name != chosen else None
             if fit is None or weight < DECISIVE_WEIGHT or fit.noise_sd > adequate_sd:
                 continue
+            if self.choice.count_of(name) == self.choice.count_of(chosen):
+                continue  # another shape of the same count: its doubt is in P, what the tolerance bounds
             rival_mean, rival_var = self._moments(fit, cells)
             odds = math.log(self.choice.weights[chosen] / weight)  # both among every rival (hypotheses.Choice)
             overturn = 0.5 * (mean - rival_mean) ** 2 / (var + rival_var + noise) - odds
@@ -346,24 +371,32 @@ class Decision:
             return "undetermined"
         return "none" if self._no_lump_chosen() else "lumps"
 
-    def _count_doubt(self) -> str | None:
-        """Why readings not yet taken could still change the count, however its posterior weighs it now: the
-        stop rule's checks on the count (not on the outline), asked of every verdict, so that a scan whose
-        points were fixed beforehand (raster, random) or whose budget ran out claims no count the active scan
-        would have read on for."""
+    def _count_doubt(self, look_ahead: bool = False) -> str | None:
+        """Why readings not yet taken could still change the count, however its posterior weighs it now (the
+        count half of the stop rule, (a)), or None. Asked of every verdict too, so that a scan whose points
+        were fixed beforehand (raster, random) or whose budget ran out claims no count the active scan would
+        have read on for. `look_ahead` (the stop rule) adds what one more reading could do: a hole beside
+        lumps found together that a lump could hide in, and a rival of another count one reading could make
+        the likelier. A verdict leaves those to the report's unfelt_radius_mm and count_weight."""
+        if self._unexplored() is not None:
+            return "a spot of the tissue farther from every reading than a lump's felt footprint"
         if self._hidden_lump() is not None:
             return "readings above the chosen model hint together at a lump no hypothesis has"
         if self._unfelt() is not None or self._rivals_unread_lump() is not None:
             return "a lump that a rival hypothesis draws holds no reading yet"
-        # Not a hole beside clustered lumps (_satellite_hole): a lump smaller than the report's
-        # unfelt_radius_mm between the readings is outside what the count claims, and the report says so.
+        if look_ahead and self._satellite_hole() is not None:
+            return "a hole beside the lumps found together could hide another"
+        if look_ahead and self._decisive_spot() is not None:
+            return "one reading could make a rival count the likelier"
         return None
 
     def _count_made(self) -> bool:
-        """As _choice_made, for the lump count: its posterior mass (every hypothesis that claims it) is at least
-        `confidence`, the chosen fit is adequate, and the newest reading did not just change the count."""
+        """The count's posterior mass (every hypothesis that claims it) is at least `confidence` (`_confident`),
+        the chosen fit is adequate, and the newest reading did not just change the count: four-lumps ended its
+        budget on `circles:5` at weight 1.000 one reading after `circles:4` at 1.000, one lump false; weights
+        that swing that far on one reading are the fits' own uncertainty, not the evidence's."""
         choice = self.choice
-        if choice is None or not self._enough_spots() or choice.count_weight < self.settings.confidence:
+        if not self._confident():
             return False
         return self._adequate() and choice.count_of(choice.chosen) == choice.count_of(self._chosen_before)
 
@@ -372,17 +405,10 @@ class Decision:
         fit = self.chosen_fit()
         return fit is not None and fit.family.k == 0
 
-    def _choice_made(self) -> bool:
-        """Enough readings, a confident choice that the newest reading did not just make, and the chosen
-        hypothesis explains them to their precision (a model that needs far more noise than readings have is
-        the best of a bad lot, not an answer). A choice one reading old is not made: four-lumps ended its
-        budget on `circles:5` at weight 1.000 one reading after `circles:4` at 1.000, one lump false; weights
-        that swing that far on one reading are the fits' own uncertainty, not the evidence's."""
-        return self._confident() and self._adequate() and self.choice.chosen == self._chosen_before
-
     def _confident(self) -> bool:
-        """Enough readings at distinct spots, and one hypothesis weighs at least `confidence`."""
-        return self.choice is not None and self.choice.weight >= self.settings.confidence and self._enough_spots()
+        """Enough readings at distinct spots, and the chosen count weighs at least `confidence`."""
+        return (self.choice is not None and self.choice.count_weight >= self.settings.confidence
+                and self._enough_spots())
 
     def _enough_spots(self) -> bool:
         """MIN_READINGS readings at distinct spots (at least the probe spacing apart): the same spot
@@ -444,7 +470,7 @@ class Decision:
         rival = self._rivals_unread_lump() if chosen else None
         if rival is not None:  # a rival's lump where nothing was read: one reading over it says if it is there
             return float(rival[0]), float(rival[1])
-        stands = chosen and self._stands()
+        stands = chosen and self._holds_now()
         satellite = self._satellite_hole() if stands else None
         if satellite is not None:  # all else holds: lumps found together, and a hole beside them a lump could hide in
             return float(satellite[0]), float(satellite[1])
@@ -590,3 +616,9 @@ def _perimeter_mm(polygon: np.ndarray) -> float:
     if len(polygon) < 2:
         return 0.0
     return float(np.hypot(*(np.roll(polygon, -1, axis=0) - polygon).T).sum())
+
+
+def _moved_within(before: list, after: list, tolerance_mm: float) -> bool:
+    """Each lump of `after` lies within the tolerance of one of `before`, centre and radius (lists of
+    (centre, radius), as _discs gives them; the same count)."""
+    return all(min(max(math.dist(c, c0), abs(r - r0)) for c0, r0 in before) <= tolerance_mm for c, r in after)

@@ -60,6 +60,7 @@ class Choice:
     runner_up: str | None  # the next of those
     weights: dict[str, float]  # every supported hypothesis's, apart or not: the rivals
     counts: dict = field(default_factory=dict)  # posterior of the lump count (int; "free-form": the map's own)
+    shares: dict = field(default_factory=dict)  # each hypothesis that may be chosen (lumps apart): its share
 
     def as_dict(self) -> dict:
         return {"chosen": self.chosen, "weight": round(self.weight, 4), "runner_up": self.runner_up}
@@ -441,7 +442,8 @@ class Hypotheses:
         counts: dict = {}
         for m in separate:
             counts[Choice.count_of(m)] = counts.get(Choice.count_of(m), 0.0) + weights[m] / share
-        return Choice(chosen, weights[chosen] / share, separate[1] if len(separate) > 1 else None, weights, counts)
+        shares = {m: weights[m] / share for m in separate}
+        return Choice(chosen, shares[chosen], separate[1] if len(separate) > 1 else None, weights, counts, shares)
 
     def _unfelt_centre(self, chosen_log_evidence: float, obs: Observations) -> np.ndarray | None:
         """The centre of a lump no reading feels yet, in a hypothesis the evidence prefers to the chosen

@@ -10,11 +10,12 @@ where to probe next and when to stop all follow from the chosen one
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from palpd.learner import acquisition, coverage, design, lumps as free_form, maps, shapes
-from palpd.learner.decision import Decision
+from palpd.learner.decision import MIN_WEIGHT, Decision
 from palpd.learner.gp import Hyper, IncrementalGP, fit_hyper
 from palpd.learner.hypotheses import Hypotheses
 from palpd.learner.observations import EXACT, Observations
@@ -64,7 +65,7 @@ class Learner(Decision):
         self.surprise_sd = 0.0  # how far the last reading fell from what the chosen fit predicted there
         self._fit_before = None  # the chosen fit before the last reading (decision._settled)
         self._settled_before = False  # whether the reading before the last settled the estimate (decision._settled)
-        self._chosen_before = None  # the chosen hypothesis's name before the last reading (decision._choice_made)
+        self._chosen_before = None  # the chosen hypothesis's name before the last reading (decision._count_made)
         self._fitted_at = 0
         self._pass = None  # the pass of refits under way (many readings: one step per update)
         self._regions = []
@@ -197,23 +198,48 @@ class Learner(Decision):
         return len(self.probed)
 
     def posterior_grid(self) -> maps.PosteriorGrid | None:
-        """The chosen hypothesis's map over the grid (xs, ys, mean, sd, P(lump)); None before a reading."""
+        """The map over the grid (xs, ys, mean, sd, P(lump)); None before a reading. Stiffness and its sd are
+        the chosen hypothesis's; P(lump) is averaged over the hypotheses (`averaged_p_lump`)."""
         if self.choice is None:
             return None
         if "grid" not in self._cache:
             fit = self.chosen_fit()
             if fit is not None and fit.family.k:
-                self._cache["grid"] = maps.parametric(fit, self.xs, self.ys, self.grid_xy)
+                grid = maps.parametric(fit, self.xs, self.ys, self.grid_xy)
             elif fit is not None and fit.family.soft:  # a lump would rise from the tissue around the soft region
                 tau = shapes.background(fit.theta, self.grid_xy, fit.family.scale_mm) + math.log1p(self.min_contrast)
-                self._cache["grid"] = maps.from_log_field(self.xs, self.ys, self.gp.mean, self.gp.var, tau)
+                grid = maps.from_log_field(self.xs, self.ys, self.gp.mean, self.gp.var, tau)
             else:
-                tau = np.log(self.free_form_map().tau).ravel()
-                self._cache["grid"] = maps.from_log_field(self.xs, self.ys, self.gp.mean, self.gp.var, tau)
+                grid = self._free_form_grid()
+            self._cache["grid"] = replace(grid, p_lump=self.averaged_p_lump().reshape(grid.p_lump.shape))
         return self._cache["grid"]
 
+    def _free_form_grid(self) -> maps.PosteriorGrid:
+        if "free-form grid" not in self._cache:
+            tau = np.log(self.free_form_map().tau).ravel()
+            self._cache["free-form grid"] = maps.from_log_field(self.xs, self.ys, self.gp.mean, self.gp.var, tau)
+        return self._cache["free-form grid"]
+
+    def averaged_p_lump(self) -> np.ndarray:
+        """P(lump) at every grid cell, averaged over the hypotheses by their posterior weight (Bayesian model
+        averaging over those whose lumps are apart, hypotheses.Choice.shares; those under MIN_WEIGHT, a
+        1 % share, are left out and the rest renormalised): a parametric one's from its posterior
+        (maps.inside_probability; the chosen one's checked covariance, a rival's Laplace one), the free-form
+        map's from the GP against its τ, and 0 under `none` (with or without a soft region)."""
+        shares = {name: w for name, w in self.choice.shares.items() if w >= MIN_WEIGHT} or {self.choice.chosen: 1.0}
+        total = sum(shares.values())
+        p = np.zeros(len(self.grid_xy))
+        for name, share in shares.items():
+            if name == "free-form":
+                p += share * self._free_form_grid().p_lump.ravel()
+                continue
+            fit = self.chosen_fit() if name == self.choice.chosen else self.hypotheses.laplace(name)
+            if fit is not None and fit.family.k:
+                p += share * maps.inside_probability(fit, self.grid_xy)
+        return p / total
+
     def p_lump(self) -> np.ndarray | None:
-        """P(lump) on the grid, shape (len(ys), len(xs)); None before the first reading."""
+        """P(lump) on the grid, shape (len(ys), len(xs)), averaged over the hypotheses; None before a reading."""
         grid = self.posterior_grid()
         return None if grid is None else grid.p_lump
 

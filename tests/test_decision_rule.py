@@ -1,0 +1,83 @@
+"""The learner's one stop rule (decision.py `Decision.decided`): the count decided, the boundary known to the user's
+tolerance, the readings explained; P(lump) averaged over the hypotheses; the true boundary error it is judged by."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import SCENES, load_script
+from hypothesis import given, settings as hsettings, strategies as st
+from test_learner import field, learn
+
+from palpd import metrics
+from palpd.learner import maps
+from palpd.learner.decision import Decision
+
+
+def test_the_stop_rule_is_one_function_whose_docstring_states_it():
+    rule = Decision.decided.__doc__
+    for term in ("(a) The count is decided", "confidence", "(b) The boundary is known to the tolerance",
+                 "∫ min(P, 1 − P) dA", "averaged over the hypotheses", "tolerance_mm",
+                 "(c) The readings are explained", "undetermined"):
+        assert term in rule, term
+
+
+def _disc(centre, radius, n=360):
+    t = np.linspace(0.0, 2.0 * math.pi, n)
+    return {"boundary_mm": np.column_stack([centre[0] + radius * np.cos(t), centre[1] + radius * np.sin(t)]).tolist()}
+
+
+@hsettings(max_examples=25, deadline=None)
+@given(shift=st.floats(0.0, 3.0), grow=st.floats(-2.0, 2.0), radius=st.floats(4.0, 12.0))
+def test_the_true_boundary_error_is_the_misread_area_over_the_boundary_length(shift, grow, radius):
+    """A disc reported `shift` mm off and `grow` mm wider: misread area over 2πr. For a small shift d the two
+    crescents hold ~4rd; for a radius off by g, the ring holds ~2πr|g|."""
+    truth = [{"center_mm": [0.0, 0.0], "radius_mm": radius}]
+    error = metrics.boundary_error_mm(truth, [_disc((shift, 0.0), radius + grow)], (60.0, 60.0))
+    if shift == 0.0:
+        expected = abs(grow) * (1.0 + grow / (2.0 * radius)) if grow > 0 else abs(grow) * (1.0 - abs(grow) / (2 * radius))
+        assert error == pytest.approx(expected, abs=0.08)
+    # never below either part alone, never above their sum (area adds at most)
+    assert error >= 2.0 * shift / math.pi * 0.9 - 0.08 and error <= 2 * shift / math.pi * 1.1 + abs(grow) * 1.2 + 0.08
+
+
+def test_a_missed_lump_and_a_false_one_both_count_and_no_truth_has_no_boundary():
+    truth = [{"center_mm": [0.0, 0.0], "radius_mm": 10.0}]
+    assert metrics.boundary_error_mm(truth, [], (60.0, 60.0)) == pytest.approx(5.0, abs=0.1)  # πr² / 2πr
+    assert metrics.boundary_error_mm(truth, [_disc((0, 0), 10), _disc((20, 20), 5)], (60, 60)) == pytest.approx(
+        2.5 * 0.5, abs=0.1)  # the false lump's 25π over the true boundary's 20π
+    assert metrics.boundary_error_mm([], [_disc((0, 0), 5)], (60.0, 60.0)) is None
+
+
+def test_p_lump_is_the_posterior_weighted_average_over_the_hypotheses():
+    """Bayesian model averaging: with the weight split between two hypotheses, P(lump) is their mixture, each
+    hypothesis's own P (a parametric fit's from its posterior, `none`'s 0)."""
+    learner = learn(field([((7.5, -4.0), 10.0, 3.0, 0.8)]), budget=14, grid=31)
+    assert learner.choice.chosen == "circles:1"
+    fit = learner.chosen_fit()
+    own = maps.inside_probability(fit, learner.grid_xy)
+    learner.choice.shares.clear()
+    learner.choice.shares.update({"circles:1": 0.6, "none": 0.4})
+    learner._cache.clear()
+    assert np.allclose(learner.p_lump().ravel(), 0.6 * own, atol=1e-9)
+    learner.choice.shares.update({"circles:1": 0.995, "none": 0.005})  # under MIN_WEIGHT: left out, renormalised
+    learner._cache.clear()
+    assert np.allclose(learner.p_lump().ravel(), own, atol=1e-9)
+
+
+def test_the_tolerance_trades_palpations_for_boundary_error_on_a_region_no_family_draws():
+    """The half-stiff map (a smooth region over half the tissue): at `tolerance_mm` 2 the scan stops early, its
+    stated error within 2 mm and so is its true one; the same posterior does not satisfy a tolerance of 0.25 mm,
+    which reads on."""
+    shapes = load_script("make_scene_maps")
+    truth = metrics.map_regions(SCENES / "maps" / "half-stiff.csv", (60, 60), 0.3)
+    learner = learn(lambda xy: float(shapes.half_stiff(np.asarray([xy]))[0]), budget=30, noise=0.02, grid=31,
+                    tolerance_mm=2.0)
+    assert learner.points < 30 and learner.verdict() == "lumps"
+    stated = learner.expected_boundary_error_mm()
+    assert stated is not None and stated <= 2.0
+    assert metrics.boundary_error_mm(truth, [lump.as_dict() for lump in learner.lumps()], (60, 60)) <= 2.0
+    learner.settings = learner.settings.model_copy(update={"tolerance_mm": 0.25})
+    learner._cache.clear()
+    assert stated > 0.25 and not learner.decided() and learner.next_probe(30) is not None
