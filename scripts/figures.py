@@ -4,7 +4,8 @@ Each table and picture is stamped with the commit it measured (`git rev-parse`; 
 has changes outside what this writes). Writes docs/figures/*.md and *.png (the manual includes them with
 pymdownx.snippets) and copies each table into README.md between its marker comments
 `<!-- figures:NAME -->` and `<!-- /figures:NAME -->` (GitHub cannot include files). Only what runs in a few
-minutes: active scans of a few shipped scenes in simulated time, the paper scan's map, `palpd bench learner`.
+minutes: active scans of a few shipped scenes in simulated time, the paper scan's map, `palpd bench learner`,
+and `palpd bench calibration` (about ten minutes on two cores).
 """
 from __future__ import annotations
 
@@ -71,6 +72,23 @@ def learner_table(stamp: str) -> str:
                               f"load average {load:.1f} on {os.cpu_count()} CPUs.\n")
 
 
+CALIBRATION_MAPS = ("half-stiff-map", "garg-phantom", "textured-half-map", "touching-lumps-map")
+
+
+def calibration_table(stamp: str) -> str:
+    """`palpd bench calibration` on random scenes at four tolerances, and on the measured maps (the scenes where the
+    boundary is not the learner's own shape) at the loosest and tightest."""
+    def bench(*args: str) -> str:
+        done = subprocess.run([sys.executable, "-m", "palpd", "bench", "calibration", "--workers", "2", *args,
+                               "--out", tempfile.mkdtemp()], check=True, capture_output=True, text=True)
+        return "\n".join(line for line in done.stdout.splitlines() if line.startswith("|"))
+    random_args = ("--random", "12", "--tolerances", "0.25,0.5,1,2")
+    map_args = ("--scenes", *CALIBRATION_MAPS, "--tolerances", "0.25,2")
+    return (f"{bench(*random_args)}\n\nRandom scenes: `palpd bench calibration {' '.join(random_args)}`.\n\n"
+            f"{bench(*map_args)}\n\nMeasured maps: `palpd bench calibration {' '.join(map_args)}`. Both measured at "
+            f"commit {stamp} by `make figures`.\n")
+
+
 def marked(name: str) -> re.Pattern:
     """What sits between a figure's marker comments in the README."""
     return re.compile(rf"(<!-- figures:{name} -->\n)(.*?)(<!-- /figures:{name} -->)", re.S)
@@ -84,7 +102,8 @@ def copy_into_readme(name: str, text: str, readme: Path = ROOT / "README.md") ->
 def main() -> int:
     FIGURES.mkdir(parents=True, exist_ok=True)
     stamp = commit_stamp()
-    figures = {"paper-map": paper_map(stamp), "scans": scans_table(stamp), "learner-bench": learner_table(stamp)}
+    figures = {"paper-map": paper_map(stamp), "scans": scans_table(stamp), "learner-bench": learner_table(stamp),
+               "calibration": calibration_table(stamp)}
     for name, text in figures.items():
         (FIGURES / f"{name}.md").write_text(text)
         copy_into_readme(name, text)

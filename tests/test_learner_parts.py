@@ -495,7 +495,16 @@ def test_a_reading_that_moves_the_centre_further_than_its_sd_allows_is_not_settl
     learner._settled_before = True
     learner._fit_before = None  # no lump model before this reading
     assert not learner._settled()
-    learner._fit_before = replace(fit, family=replace(fit.family, kind="ellipses"))
+    # another shape of the same count (issue 48: its doubt is in P, which the tolerance bounds) settles when its
+    # lumps moved within the tolerance, and not when they moved further; another count never does
+    ellipse = replace(fit.family, kind="ellipses")
+    learner._fit_before = replace(fit, family=ellipse)
+    assert learner._settled()
+    theta = fit.theta.copy()
+    theta[cx] -= 2.0 * learner.settings.tolerance_mm
+    learner._fit_before = replace(fit, family=ellipse, theta=theta)
+    assert not learner._settled()
+    learner._fit_before = learner.hypotheses.fits["none"]
     assert not learner._settled()
 
 

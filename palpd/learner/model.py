@@ -226,6 +226,8 @@ class Learner(Decision):
         1 % share, are left out and the rest renormalised): a parametric one's from its posterior
         (maps.inside_probability; the chosen one's checked covariance, a rival's Laplace one), the free-form
         map's from the GP against its τ, and 0 under `none` (with or without a soft region)."""
+        if "averaged p" in self._cache:
+            return self._cache["averaged p"]
         shares = {name: w for name, w in self.choice.shares.items() if w >= MIN_WEIGHT} or {self.choice.chosen: 1.0}
         total = sum(shares.values())
         p = np.zeros(len(self.grid_xy))
@@ -236,7 +238,8 @@ class Learner(Decision):
             fit = self.chosen_fit() if name == self.choice.chosen else self.hypotheses.laplace(name)
             if fit is not None and fit.family.k:
                 p += share * maps.inside_probability(fit, self.grid_xy)
-        return p / total
+        self._cache["averaged p"] = p / total
+        return self._cache["averaged p"]
 
     def p_lump(self) -> np.ndarray | None:
         """P(lump) on the grid, shape (len(ys), len(xs)), averaged over the hypotheses; None before a reading."""
