@@ -18,8 +18,6 @@ relative measurement noise where a real map would have one:
 - textured-plain.csv: plain tissue, no lump, with 5 % texture on a 2 mm grid;
 - touching-lumps.csv: touching-lumps' three lumps (5 mm, edges 2–4 mm apart, 6.7× the tissue, each with
   the power-law edge the simulator gives a lump 2 mm deep) as a 1 mm grid would measure them, 2 % noise;
-- c-shape.csv: a ring 8-16 mm out with a quarter of it open (a C), 5× the tissue; rounded-rectangle.csv: a
-  24 × 12 mm rectangle with 2 mm corners, 5× (issue 48: shapes no parametric family draws), 2 % noise on a 1 mm grid;
 - cone-lump.csv: a lump whose stiffness rises linearly to a point, 4.5× the tissue at its top, 16 mm
   from its top to where it meets the tissue (its half-height 8 mm out): tails that end, a top with no
   plateau, 2 % noise on a 1.5 mm grid.
@@ -43,6 +41,10 @@ ramp): the same kind of try (README, "Tried beyond" and "Latest").
 
 writes eight stiff inclusions drawn by hand as steps (0.5 N/mm in 0.12, nothing between) on 0.5-2 mm grids,
 none of them shipped (README, "Scenes": what the learner does with a staircase edge).
+
+    .venv/bin/python scripts/make_scene_maps.py --shapes DIR
+
+writes two regions no parametric family draws (issue 48), none shipped: a C and a rounded rectangle.
 """
 from __future__ import annotations
 
@@ -194,6 +196,9 @@ def _step(inside):
 
 # Stiff inclusions drawn as steps (README, "Scenes" and "Still open"): discs of 4, 6, 10 (2 mm grid), 8 (0.5 mm)
 # and 7 mm (2 mm, no noise), a 6 x 2.5 mm ellipse at 30°, a 16 mm square, two 6 mm discs.
+# Regions no parametric family draws (issue 48): a C (a ring 8-16 mm out, a quarter of it open) and a 24 x 12 mm
+# rectangle with 2 mm corners, each 5x the tissue with a ~0.5 mm edge, 2 % noise on a 1 mm grid.
+SHAPES = {"c-shape": ((60, 60), 1.0, 0.02, c_shape), "rounded-rectangle": ((60, 60), 1.0, 0.02, rounded_rectangle)}
 STEPS = {
     "d4": ((60, 60), 1.0, 0.02, _step(_disc(5, -3, 4))),
     "d6": ((60, 60), 1.0, 0.02, _step(_disc(-8, 6, 6))),
@@ -246,14 +251,17 @@ def main() -> None:
     parser.add_argument("--regions", type=Path, metavar="DIR", help="write the unshipped stiff-region maps here")
     parser.add_argument("--profiles", type=Path, metavar="DIR", help="write the unshipped lump-profile maps here")
     parser.add_argument("--steps", type=Path, metavar="DIR", help="write the unshipped maps drawn as steps here")
+    parser.add_argument("--shapes", type=Path, metavar="DIR", help="write the unshipped C and rectangle maps here")
     args = parser.parse_args()
-    if args.regions or args.profiles or args.steps:
+    if args.regions or args.profiles or args.steps or args.shapes:
         if args.regions:
             write_regions(args.regions)
         if args.profiles:
             write_maps(args.profiles, PROFILES)
         if args.steps:
             write_maps(args.steps, STEPS, STEP_SCENE)
+        if args.shapes:
+            write_maps(args.shapes, SHAPES)
         return
     rng = np.random.default_rng(11)
     OUT.mkdir(parents=True, exist_ok=True)
@@ -273,10 +281,6 @@ def main() -> None:
     xy = grid(1.5)
     noise = np.random.default_rng(13).normal(0.0, 0.02, len(xy))
     write("cone-lump.csv", xy, cone_lump(xy) * (1.0 + noise))
-    xy = grid(1.0)
-    noise = np.random.default_rng(14).normal(0.0, 0.02, (2, len(xy)))
-    write("c-shape.csv", xy, c_shape(xy) * (1.0 + noise[0]))
-    write("rounded-rectangle.csv", xy, rounded_rectangle(xy) * (1.0 + noise[1]))
 
 
 if __name__ == "__main__":

@@ -155,3 +155,46 @@ def test_the_plot_of_a_sweep_on_scenes_without_lumps_is_drawn(tmp_path):
             for i, (strategy, palpation) in enumerate(pareto.COLOURS)]
     pareto.plot(rows, pareto.settings_summary(rows), tmp_path / "pareto.png")
     assert (tmp_path / "pareto.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_the_calibration_bench_scores_the_stated_error_against_the_truth_on_the_cluster(dask_cluster, tmp_path, capsys):
+    """palpd bench calibration (issue 48): the paper scene at a 2 mm tolerance, as a user runs it, on the cluster."""
+    import json
+
+    from palpd.cli import main
+
+    code = main(["bench", "calibration", "--scenes", str(SCENES / "paper.toml"), "--tolerances", "2",
+                 "--scheduler", dask_cluster, "--out", str(tmp_path), "--json"])
+    assert code == 0
+    (row,) = json.loads(capsys.readouterr().out)["settings"]
+    assert row["tolerance_mm"] == 2.0 and row["confidence"] == 0.9 and row["runs"] == 1
+    assert row["count_right"] == 1.0 and row["wrong_count_verdicts"] == 0 and row["within_tolerance"] == 1.0
+    assert 0.0 <= row["boundary_error_mm"] <= 2.0 and 0.0 < row["stated_error_mm"] <= 2.0
+    with open(tmp_path / "calibration.csv", newline="") as f:
+        (written,) = list(csv.DictReader(f))
+    assert written["verdict"] == "lumps" and float(written["boundary_error_mm"]) == row["boundary_error_mm"]
+
+
+def test_the_reliability_table_counts_wrong_verdicts_and_errors_within_the_tolerance():
+    from palpd.commands.bench_calibration import format_table, reliability
+
+    def run(found, false, verdict, error, palpations=20, setting="tolerance_mm=0.5;confidence=0.9"):
+        return {"setting": setting, "lumps_found": found, "lumps_true": 1, "false_lumps": false, "verdict": verdict,
+                "boundary_error_mm": error, "expected_boundary_error_mm": 0.1, "palpations": palpations}
+    rows = [run(1, 0, "lumps", 0.2), run(1, 1, "lumps", 0.7, 30), run(0, 0, "undetermined", 5.0, 40),
+            run(1, 0, "lumps", 0.4, 10, "tolerance_mm=2.0;confidence=0.9")]
+    tight, loose = reliability(rows)
+    assert (tight["runs"], tight["palpations"], tight["wrong_count_verdicts"], tight["undetermined"]) == (3, 90, 1, 1)
+    assert tight["count_right"] == pytest.approx(1 / 3) and tight["within_tolerance"] == pytest.approx(1 / 3)
+    assert loose["tolerance_mm"] == 2.0 and loose["within_tolerance"] == 1.0
+    assert "| 0.5 | 0.9 | 90 |" in format_table([tight, loose], 3, 0)
+
+
+@pytest.mark.parametrize("args, says", [(["--tolerances", "abc"], "--tolerances abc"),
+                                        (["--tolerances", "0,1"], "positive"),
+                                        (["--confidences", "1.5"], "--confidences")])
+def test_bad_calibration_settings_are_one_line(args, says):
+    done = subprocess.run([sys.executable, "-m", "palpd", "bench", "calibration", *args], capture_output=True,
+                          text=True, timeout=60)
+    assert done.returncode != 0 and says in done.stderr and "Traceback" not in done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
