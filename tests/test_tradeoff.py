@@ -186,6 +186,7 @@ def test_the_reliability_table_counts_wrong_verdicts_and_errors_within_the_toler
     tight, loose = reliability(rows)
     assert (tight["runs"], tight["palpations"], tight["wrong_count_verdicts"], tight["undetermined"]) == (3, 90, 1, 1)
     assert tight["count_right"] == pytest.approx(1 / 3) and tight["within_tolerance"] == pytest.approx(1 / 3)
+    assert (tight["claimed"], tight["claimed_and_within"]) == (2, 1)  # the undetermined run claimed nothing
     assert loose["tolerance_mm"] == 2.0 and loose["within_tolerance"] == 1.0
     assert "| 0.5 | 0.9 | 90 |" in format_table([tight, loose], 3, 0)
 
