@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from conftest import SCENES, load_script
 from hypothesis import given, settings as hsettings, strategies as st
 from test_learner import field, learn
 
@@ -66,18 +65,17 @@ def test_p_lump_is_the_posterior_weighted_average_over_the_hypotheses():
     assert np.allclose(learner.p_lump().ravel(), own, atol=1e-9)
 
 
-def test_the_tolerance_trades_palpations_for_boundary_error_on_a_region_no_family_draws():
-    """The half-stiff map (a smooth region over half the tissue): at `tolerance_mm` 2 the scan stops early, its
-    stated error within 2 mm and so is its true one; the same posterior does not satisfy a tolerance of 0.25 mm,
-    which reads on."""
-    shapes = load_script("make_scene_maps")
-    truth = metrics.map_regions(SCENES / "maps" / "half-stiff.csv", (60, 60), 0.3)
-    learner = learn(lambda xy: float(shapes.half_stiff(np.asarray([xy]))[0]), budget=30, noise=0.02, grid=31,
-                    tolerance_mm=2.0)
-    assert learner.points < 30 and learner.verdict() == "lumps"
+def test_the_tolerance_trades_palpations_for_boundary_error():
+    """A deep lump (a wide, gradual edge) read with 5 % noise: at `tolerance_mm` 2 the scan stops early (13
+    readings; 25 at 0.25), its stated boundary error within 2 mm and so is its true one; the same posterior does
+    not satisfy a tolerance of 0.25 mm, which reads on."""
+    truth = [((-4.0, 6.0), 9.0, 25.0, 0.5)]
+    learner = learn(field(truth), budget=30, noise=0.05, grid=31, tolerance_mm=2.0)
+    assert learner.points < 20 and learner.verdict() == "lumps"
     stated = learner.expected_boundary_error_mm()
     assert stated is not None and stated <= 2.0
-    assert metrics.boundary_error_mm(truth, [lump.as_dict() for lump in learner.lumps()], (60, 60)) <= 2.0
+    true_lumps = [{"center_mm": list(c), "radius_mm": r} for c, r, *_ in truth]
+    assert metrics.boundary_error_mm(true_lumps, [lump.as_dict() for lump in learner.lumps()], (60, 60)) <= 2.0
     learner.settings = learner.settings.model_copy(update={"tolerance_mm": 0.25})
     learner._cache.clear()
     assert stated > 0.25 and not learner.decided() and learner.next_probe(30) is not None
