@@ -298,7 +298,15 @@ def test_an_inclusion_holds_the_points_of_its_turned_shape():
     assert inside.tolist() == [True, False, False]  # turned 90 degrees it runs along y, 1 mm round
 
 
-def test_the_simulator_refuses_a_3d_scene_it_cannot_compute_yet(run_cli):
-    result = run_cli("scan", "--scene", SCENES_3D / "sphere-3d.toml", "--max-palpations", "2")
-    assert result.returncode == 78 and "3-D tissue" in result.stderr
-    assert_one_line_error(result)
+def test_the_simulator_scans_a_3d_scene_by_its_force_table(run_cli, tmp_path):
+    """Issue 49: a 3-D scene is no longer refused; its finite-element table is built once and cached."""
+    import os
+
+    small = ('name = "small-3d"\n[tissue]\nsize_mm = [20, 20]\nthickness_mm = 10\nmodulus_kpa = 15\n'
+             '[[inclusion]]\nshape = "sphere"\ncenter_mm = [2, -2, 5]\nradius_mm = 3\nmodulus_kpa = 150\n')
+    env = {**os.environ, "PALPD_CACHE_DIR": str(tmp_path / "cache")}
+    result = run_cli("scan", "--scene", scene_file(tmp_path, small), "--max-palpations", "2", env=env)
+    output = result.stdout + result.stderr
+    assert "[  2/2]" in output and "k = 0." in output, output  # two palpations pressed the table's tissue
+    assert result.returncode == 3 and "undetermined" in result.stderr  # too few to decide: not refused (78)
+    assert len(list((tmp_path / "cache").glob("force-table-*.npz"))) == 1
