@@ -11,10 +11,15 @@ from drivers.sim.scene import Scene
 # a small layer with a stiff sphere whose top is 2 mm down: the production mesh on it builds in a few seconds
 SMALL = {"name": "small-3d", "tissue": {"size_mm": [20.0, 20.0], "thickness_mm": 10.0, "modulus_kpa": 15.0},
          "inclusion": [{"shape": "sphere", "center_mm": [2.0, -2.0, 5.0], "radius_mm": 3.0, "modulus_kpa": 150.0}]}
-# the table read between its grid points, against the contact solved there directly on the same mesh: the
-# 2 mm node spacing under a 2.5 mm tip makes the direct solve itself jump as nodes enter the tip (measured:
-# median 5 %, max 20 % over 25 random points)
-TABLE_VS_DIRECT_MEDIAN, TABLE_VS_DIRECT_MAX = 0.08, 0.25
+# the table against the contact solved directly on the same mesh, averaged as the table is (1/4, 1/2, 1/4 over
+# the neighbouring 2 mm node offsets, each way: a point load on a corner node and on a mid-side node of a P2
+# element meet different compliances, and the raw solve ripples ±15 % node to node). Measured over 25 random
+# points: on grid points between tabulated depths (the power law) median 0.5 %, max 12 % (where the next ring of
+# nodes enters the tip, δ 1-2 mm); between grid points median 4 %, max 27 %, most of it the direct solve's
+# own ripple with the tip's place between nodes (against the raw solve: median 11 %, max 25 %).
+AT_NODES_MEDIAN, AT_NODES_MAX = 0.02, 0.15
+BETWEEN_MEDIAN, BETWEEN_MAX = 0.06, 0.30
+BINOMIAL = ((-1, 0.25), (0, 0.5), (1, 0.25))
 
 
 def small_scene(**tissue) -> Scene:
@@ -32,16 +37,19 @@ def test_the_table_reads_the_direct_contact_solve_between_its_grid_points(built)
     scene, table, block, compliance = built
     field = T.TableField(table)
     rng = np.random.default_rng(7)
-    errors = []
+    between, at_nodes = [], []
     for _ in range(25):
-        x, y, depth = rng.uniform(-7, 7), rng.uniform(-7, 7), rng.uniform(0.6, 4.8)
-        direct = T.force_at(block.surface_xy, compliance, x, y, scene.probe.tip_radius_mm, [depth])[0]
-        errors.append(field.force_n(x, y, depth, 0.0) / direct - 1)
-    errors = np.abs(errors)
-    assert np.median(errors) < TABLE_VS_DIRECT_MEDIAN and errors.max() < TABLE_VS_DIRECT_MAX, sorted(errors)
-    # on a grid point at a tabulated depth it is the solve itself
-    i, j = 3, 6
-    direct = T.force_at(block.surface_xy, compliance, table.xs[i], table.ys[j], 2.5, [2.0])[0]
+        x, y, depth = rng.uniform(-4, 4), rng.uniform(-4, 4), rng.uniform(0.6, 4.8)  # the tabulated range, inset
+        for errors, (px, py) in ((between, (x, y)), (at_nodes, (2 * round(x / 2), 2 * round(y / 2)))):
+            direct = sum(wx * wy * T.force_at(block.surface_xy, compliance, px + 2 * a, py + 2 * b, 2.5, [depth])[0]
+                         for a, wx in BINOMIAL for b, wy in BINOMIAL)
+            errors.append(abs(field.force_n(px, py, depth, 0.0) / direct - 1))
+    assert np.median(at_nodes) < AT_NODES_MEDIAN and max(at_nodes) < AT_NODES_MAX, sorted(at_nodes)
+    assert np.median(between) < BETWEEN_MEDIAN and max(between) < BETWEEN_MAX, sorted(between)
+    # on a grid point at a tabulated depth it is the averaged solve itself
+    i, j = 3, 4
+    direct = sum(wx * wy * T.force_at(block.surface_xy, compliance, table.xs[i + a], table.ys[j + b], 2.5, [2.0])[0]
+                 for a, wx in BINOMIAL for b, wy in BINOMIAL)
     assert field.force_n(table.xs[i], table.ys[j], 2.0) == pytest.approx(direct, rel=1e-9)
 
 
@@ -64,6 +72,11 @@ def test_a_homogeneous_layer_reads_the_bonded_layer_law_once_a_few_nodes_touch()
     for depth in (1.0, 2.0):  # the paraboloid's law, near enough the sphere at these depths
         ratio = field.force_n(0.0, 0.0, depth) / bonded_layer_n(15.0, 0.48, 2.5, depth, 10.0)
         assert abs(ratio - 1) < 0.25, (depth, ratio)
+    # and its sides are not soft: the layer goes on past the palpable rectangle (sides on rollers), and a tip
+    # nearer a side than its radius reads the table a radius in
+    middle = field.force_n(0.0, 0.0, 2.0)
+    for x, y in ((9.9, 0.0), (-10.0, -10.0), (5.0, 3.0), (30.0, 0.0)):
+        assert field.force_n(x, y, 2.0) == pytest.approx(middle, rel=0.05), (x, y)
 
 
 def test_the_table_is_cached_per_scene_and_a_corrupt_file_is_rebuilt(tmp_path, monkeypatch, caplog):
