@@ -71,7 +71,7 @@ def test_a_homogeneous_layer_reads_the_bonded_layer_law_once_a_few_nodes_touch()
     field = T.TableField(T.build_table(scene, depths_mm=(1.0, 2.0)))
     for depth in (1.0, 2.0):  # the paraboloid's law, near enough the sphere at these depths
         ratio = field.force_n(0.0, 0.0, depth) / bonded_layer_n(15.0, 0.48, 2.5, depth, 10.0)
-        assert abs(ratio - 1) < 0.25, (depth, ratio)
+        assert abs(ratio - 1) < 0.10, (depth, ratio)  # measured -4 % and +2 %
     # and its sides are not soft: the layer goes on past the palpable rectangle (sides on rollers), and a tip
     # nearer a side than its radius reads the table a radius in
     middle = field.force_n(0.0, 0.0, 2.0)
@@ -123,3 +123,14 @@ def test_the_simulator_presses_a_3d_scene_by_its_table(tmp_path, monkeypatch):
     assert world.felt_stiffness(2.0, -2.0) == pytest.approx(field.force_n(2.0, -2.0, 1.0))
     assert world.felt_stiffness(2.0, -2.0) > 1.3 * world.felt_stiffness(-7.0, 7.0)
     assert math.isfinite(world.felt_stiffness(50.0, 50.0))  # off the tissue: its edge
+
+
+def test_a_cache_that_cannot_be_written_only_logs(tmp_path, monkeypatch, caplog):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("")
+    monkeypatch.setenv("PALPD_CACHE_DIR", str(blocker / "cache"))  # under a file: no directory can be made
+    with caplog.at_level(logging.WARNING):
+        table = T.cached_table(small_scene(size_mm=[12.0, 12.0], thickness_mm=8.0), progress=False)
+    assert table.forces_n.min() > 0
+    [record] = caplog.records
+    assert "not cached" in record.message and "\n" not in record.message
