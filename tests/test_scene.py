@@ -273,7 +273,7 @@ def test_invalid_3d_scenes_are_rejected_with_one_clear_line(tmp_path, text, mess
     assert message in str(error.value)
 
 
-SCENES_3D = ROOT / "docs" / "examples" / "scenes-3d"  # not shipped until the simulator computes them (issue 49)
+SCENES_3D = ROOT / "docs" / "examples" / "scenes-3d"  # 3-D examples (issue 49); paper-3d also ships in config/scenes
 
 
 def test_a_3d_scene_truth_is_each_stiff_inclusion_footprint_with_the_depth_of_its_top(tmp_path):
