@@ -134,3 +134,13 @@ def test_a_cache_that_cannot_be_written_only_logs(tmp_path, monkeypatch, caplog)
     assert table.forces_n.min() > 0
     [record] = caplog.records
     assert "not cached" in record.message and "\n" not in record.message
+
+
+def test_the_tradeoff_bench_builds_a_3d_table_once_before_its_workers(tmp_path, monkeypatch):
+    from palpd.commands.bench_tradeoff import _scenes
+
+    monkeypatch.setenv("PALPD_CACHE_DIR", str(tmp_path / "cache"))
+    (tmp_path / "small.toml").write_text('name = "small"\n[tissue]\nsize_mm = [12, 12]\nthickness_mm = 8\n'
+                                         'modulus_kpa = 15\n')
+    [scene] = _scenes([str(tmp_path / "small.toml")])
+    assert scene.tissue.is_3d and len(list((tmp_path / "cache").glob("force-table-*.npz"))) == 1
