@@ -144,3 +144,21 @@ def test_the_tradeoff_bench_builds_a_3d_table_once_before_its_workers(tmp_path, 
                                          'modulus_kpa = 15\n')
     [scene] = _scenes([str(tmp_path / "small.toml")])
     assert scene.tissue.is_3d and len(list((tmp_path / "cache").glob("force-table-*.npz"))) == 1
+
+
+def test_the_daemon_builds_the_table_before_its_servo_and_keeps_systemd_waiting(tmp_path, monkeypatch):
+    import socket
+    from types import SimpleNamespace
+
+    from palpd.commands.serve import _prepare_3d_tissue
+
+    monkeypatch.setenv("PALPD_CACHE_DIR", str(tmp_path / "cache"))
+    listener = socket.socket(socket.AF_UNIX, socket.SOCK_DGRAM)
+    listener.bind(str(tmp_path / "notify"))
+    listener.settimeout(5.0)
+    monkeypatch.setenv("NOTIFY_SOCKET", str(tmp_path / "notify"))
+    settings = SimpleNamespace(robot=SimpleNamespace(url="sim://"))
+    _prepare_3d_tissue(settings, small_scene(size_mm=[12.0, 12.0], thickness_mm=8.0), logging.getLogger("t"))
+    assert "EXTEND_TIMEOUT_USEC=" in listener.recv(4096).decode()
+    assert len(list((tmp_path / "cache").glob("force-table-*.npz"))) == 1
+    listener.close()
