@@ -39,7 +39,7 @@ class SimWorld:
         self._tilt = model.SensorTilt(self.q_aligned)
         # a 3-D layer: its finite-element force table (built once per scene, then cached); else the felt field
         self.table = TableField(cached_table(scene), scene.tissue.damping_n_s_per_mm) if scene.tissue.is_3d else None
-        self.field = self.table or StiffnessField(scene)
+        self.field = self.table if self.table is not None else StiffnessField(scene)
         rng = random.Random(hash((scene.seed, seed)) & 0xFFFFFFFF)
         self.sensor = SimNano17(scene.sensor.noise_n, scene.sensor.bias_n, rng)
         self.arm = SimArm()
