@@ -162,3 +162,22 @@ def test_the_daemon_builds_the_table_before_its_servo_and_keeps_systemd_waiting(
     assert "EXTEND_TIMEOUT_USEC=" in listener.recv(4096).decode()
     assert len(list((tmp_path / "cache").glob("force-table-*.npz"))) == 1
     listener.close()
+
+
+def test_a_3d_tissue_too_large_to_build_is_refused_in_one_line_at_once():
+    from drivers.sim.scene import SceneError
+
+    with pytest.raises(SceneError) as error:
+        T.build_table(small_scene(size_mm=[150.0, 150.0], thickness_mm=30.0))
+    message = str(error.value)
+    assert "\n" not in message and "150 x 150 x 30 mm" in message and "size_mm or thickness_mm" in message
+
+
+def test_palpd_scan_refuses_a_3d_tissue_too_large_to_build_with_exit_78(run_cli, tmp_path):
+    from conftest import assert_one_line_error
+
+    (tmp_path / "big.toml").write_text('name = "big"\n[tissue]\nsize_mm = [100, 100]\nthickness_mm = 20\n'
+                                       'modulus_kpa = 15\n')
+    result = run_cli("scan", "--scene", tmp_path / "big.toml", "--max-palpations", "2")
+    assert result.returncode == 78
+    assert_one_line_error(result, "100 x 100 x 20 mm", "unknowns")

@@ -89,10 +89,20 @@ def layer_mesh(scene, element_mm: float = ELEMENT_MM, surface_element_mm: float 
                 depth_lines(scene.tissue.thickness_mm, surface_element_mm))
 
 
+MAX_UNKNOWNS = 50_000  # paper-3d's 60 x 60 x 20 mm has 31 713 and builds in 1-3 minutes on 2 cores
+
+
 def layer_compliance(scene, element_mm: float = ELEMENT_MM, surface_element_mm: float = SURFACE_ELEMENT_MM):
     from drivers.sim.mechanics.fem import SurfaceCompliance
+    from drivers.sim.scene import SceneError
 
     grid = layer_mesh(scene, element_mm, surface_element_mm)
+    unknowns = 3 * (2 * len(grid.xs) - 1) * (2 * len(grid.ys) - 1) * (2 * len(grid.zs) - 1)  # P2 nodes x 3
+    if unknowns > MAX_UNKNOWNS:  # its factor would not fit in minutes or memory here: say so, not hang
+        w, h = scene.tissue.size_mm
+        raise SceneError(f"scene {scene.name!r}: a 3-D tissue {w:g} x {h:g} x {scene.tissue.thickness_mm:g} mm "
+                         f"needs {unknowns} finite-element unknowns, more than the {MAX_UNKNOWNS} the simulator "
+                         "builds (about 70 x 70 x 20 mm): make size_mm or thickness_mm smaller")
     # the sides on rollers: the palpable rectangle is part of a larger layer, not a block whose free edges read
     # soft (with free sides its corners read k 0.013 N/mm against 0.08 inside, and a scan of paper-3d took the
     # whole middle for the lump)
