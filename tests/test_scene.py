@@ -273,7 +273,7 @@ def test_invalid_3d_scenes_are_rejected_with_one_clear_line(tmp_path, text, mess
     assert message in str(error.value)
 
 
-SCENES_3D = ROOT / "docs" / "examples" / "scenes-3d"  # not shipped until the simulator computes them (issue 49)
+SCENES_3D = ROOT / "docs" / "examples" / "scenes-3d"  # 3-D examples (issue 49); paper-3d also ships in config/scenes
 
 
 def test_a_3d_scene_truth_is_each_stiff_inclusion_footprint_with_the_depth_of_its_top(tmp_path):
@@ -298,7 +298,15 @@ def test_an_inclusion_holds_the_points_of_its_turned_shape():
     assert inside.tolist() == [True, False, False]  # turned 90 degrees it runs along y, 1 mm round
 
 
-def test_the_simulator_refuses_a_3d_scene_it_cannot_compute_yet(run_cli):
-    result = run_cli("scan", "--scene", SCENES_3D / "sphere-3d.toml", "--max-palpations", "2")
-    assert result.returncode == 78 and "3-D tissue" in result.stderr
-    assert_one_line_error(result)
+def test_the_simulator_scans_a_3d_scene_by_its_force_table(run_cli, tmp_path):
+    """Issue 49: a 3-D scene is no longer refused; its finite-element table is built once and cached."""
+    import os
+
+    small = ('name = "small-3d"\n[tissue]\nsize_mm = [20, 20]\nthickness_mm = 10\nmodulus_kpa = 15\n'
+             '[[inclusion]]\nshape = "sphere"\ncenter_mm = [2, -2, 5]\nradius_mm = 3\nmodulus_kpa = 150\n')
+    env = {**os.environ, "PALPD_CACHE_DIR": str(tmp_path / "cache")}
+    result = run_cli("scan", "--scene", scene_file(tmp_path, small), "--max-palpations", "2", env=env)
+    output = result.stdout + result.stderr
+    assert "[  2/2]" in output and "k = 0." in output, output  # two palpations pressed the table's tissue
+    assert result.returncode == 3 and "undetermined" in result.stderr  # too few to decide: not refused (78)
+    assert len(list((tmp_path / "cache").glob("force-table-*.npz"))) == 1

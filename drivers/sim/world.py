@@ -16,8 +16,9 @@ from drivers.interfaces import STATUS_AMPLIFIERS_ON, STATUS_ESTOP, ForceSample
 from drivers.phantom import model
 from drivers.sim.arm import SimArm
 from drivers.sim.faults import SimFaults
+from drivers.sim.mechanics.table import TableField, cached_table
 from drivers.sim.nano17 import SimNano17
-from drivers.sim.scene import Scene, SceneError
+from drivers.sim.scene import Scene
 from drivers.sim.tissue import StiffnessField, hunt_crossley_n, sliding_friction_n
 
 PHYSICS_STEP_S = 0.0005
@@ -31,15 +32,14 @@ class SimWorld:
     """Advances lazily: whoever reads it first after the clock moved pays for the physics."""
 
     def __init__(self, scene: Scene, clock, seed: int = 0) -> None:
-        if scene.tissue.is_3d:  # the felt-stiffness field would silently read it as the default 2-D tissue
-            raise SceneError(f"scene {scene.name!r} is a 3-D tissue (tissue.thickness_mm); the simulator does not "
-                             "compute 3-D mechanics yet (issue 49): use a 2-D scene")
         self.scene = scene
         self.clock = clock
         self.frame = TissueFrame(tuple(v / 1000.0 for v in scene.placement.origin_mm))
         self.q_aligned = model.inverse(self.frame.to_robot((0.0, 0.0, 0.0)))
         self._tilt = model.SensorTilt(self.q_aligned)
-        self.field = StiffnessField(scene)
+        # a 3-D layer: its finite-element force table (built once per scene, then cached); else the felt field
+        self.table = TableField(cached_table(scene), scene.tissue.damping_n_s_per_mm) if scene.tissue.is_3d else None
+        self.field = self.table if self.table is not None else StiffnessField(scene)
         rng = random.Random(hash((scene.seed, seed)) & 0xFFFFFFFF)
         self.sensor = SimNano17(scene.sensor.noise_n, scene.sensor.bias_n, rng)
         self.arm = SimArm()
@@ -143,10 +143,15 @@ class SimWorld:
 
     # -- physics -----------------------------------------------------------------------------
     def felt_stiffness(self, x_mm: float, y_mm: float) -> float:
-        """Stiffness under a point of the tissue frame as placed (after the scene's rotation)."""
+        """Stiffness under a point of the tissue frame as placed (after the scene's rotation); a 3-D tissue's is
+        its force at 1 mm over 1 mm."""
+        return self.field.k_at(*self._scene_xy(x_mm, y_mm))
+
+    def _scene_xy(self, x_mm: float, y_mm: float) -> tuple[float, float]:
+        """A point of the tissue frame as placed, in the scene's own frame (before its rotation)."""
         if self._rotation_deg:
-            x_mm, y_mm = rotate_xy(x_mm, y_mm, -self._rotation_deg)
-        return self.field.k_at(x_mm, y_mm)
+            return rotate_xy(x_mm, y_mm, -self._rotation_deg)
+        return x_mm, y_mm
 
     def _step(self, dt: float) -> None:
         q = tuple(self.arm.q)
@@ -190,8 +195,11 @@ class SimWorld:
         vx = vy = vz = 0.0
         if self._tissue.damping_n_s_per_mm or self._tissue.friction:  # the Jacobian costs: only when it matters
             vx, vy, vz = (1000.0 * v for v in self.frame.vector_from_robot(model.tip_velocity(q, tuple(self.arm.qd))))
-        k = self.felt_stiffness(1000.0 * tip[0], 1000.0 * tip[1])
-        normal_n = hunt_crossley_n(k, self._tissue.exponent, self._tissue.damping_n_s_per_mm, depth_mm, -vz)
+        if self.table is not None:
+            normal_n = self.table.force_n(*self._scene_xy(1000.0 * tip[0], 1000.0 * tip[1]), depth_mm, -vz)
+        else:
+            k = self.felt_stiffness(1000.0 * tip[0], 1000.0 * tip[1])
+            normal_n = hunt_crossley_n(k, self._tissue.exponent, self._tissue.damping_n_s_per_mm, depth_mm, -vz)
         normal_n += self.faults.extra_normal_force_n(1000.0 * tip[0], 1000.0 * tip[1], depth_mm)
         # The tissue drags the sliding tip along its surface; the indenter's normal response is the same moving
         # or not (a soft tissue relaxes under a smooth probe faster than it slides: no ploughing term).

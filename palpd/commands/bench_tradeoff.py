@@ -55,7 +55,13 @@ def _scenes(specs) -> list:
     paths = [q for p in map(Path, specs) for q in (sorted(p.glob("*.toml")) if p.is_dir() else [resolve_scene(p)])]
     if not paths:
         raise UsageError(f"--scenes {' '.join(specs)}: no *.toml scenes there")
-    return [load_scene(p) for p in paths]
+    scenes = [load_scene(p) for p in paths]
+    for scene in scenes:
+        if scene.tissue.is_3d:  # built once here, not by every worker at once: a cold table takes minutes
+            from drivers.sim.mechanics.table import cached_table
+
+            cached_table(scene)
+    return scenes
 
 
 def _sweep(runs, scheduler: str, workers) -> tuple[list[dict], list[dict]]:

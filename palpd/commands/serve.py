@@ -47,7 +47,44 @@ def run(args) -> int:
             log.info("environment overrides: %s", ", ".join(overrides))
         log.info("bench: %s", _describe_bench(settings, scene, scene_path))
 
+    _prepare_3d_tissue(settings, scene, log)
     return _serve(settings, scene, security, announce)
+
+
+def _prepare_3d_tissue(settings, scene, log) -> None:
+    """A simulated 3-D scene's force table, read from the cache or built (minutes, once per scene) before the
+    servo process starts, with systemd told to wait meanwhile: Type=notify gives a start 90 s by default."""
+    if scene is None or not scene.tissue.is_3d or not settings.robot.url.startswith("sim"):
+        return
+    import threading
+    import time
+
+    from drivers.sim.mechanics.table import cache_dir, cached_table
+    from palpd.daemon.notify import Notifier
+
+    notifier, done = Notifier(), threading.Event()
+
+    def keep_extending() -> None:
+        while True:
+            notifier.notify(f"EXTEND_TIMEOUT_USEC={int(3 * TABLE_NOTIFY_S * 1e6)}",
+                            "STATUS=building the 3-D tissue's force table (once per scene)")
+            if done.wait(TABLE_NOTIFY_S):
+                return
+
+    extender = threading.Thread(target=keep_extending, name="palpd-table-notify", daemon=True)
+    extender.start()
+    started = time.monotonic()
+    try:
+        table = cached_table(scene)
+    finally:
+        done.set()
+        extender.join()
+        notifier.close()
+    log.info("3-D tissue: force table %d x %d points x %d depths in %.1f s (cache %s)", len(table.xs),
+             len(table.ys), len(table.depths_mm), time.monotonic() - started, cache_dir())
+
+
+TABLE_NOTIFY_S = 10.0
 
 
 def _scene(settings, requested: str | None):

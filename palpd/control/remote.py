@@ -37,6 +37,10 @@ def open_servo_bench(settings, scene, seed: int = 0, realtime: bool = False) -> 
     """Start the servo process on the bench open_bench would open here; returns the parent's view of it."""
     realtime = realtime or not settings.robot.url.startswith("sim")  # hardware runs on the wall clock, always
     check_reach(settings, scene)  # here, in one line: a child that cannot place the tissue could only die
+    if settings.robot.url.startswith("sim") and scene.tissue.is_3d:
+        from drivers.sim.mechanics.table import cached_table
+
+        cached_table(scene)  # here, with its progress bar: a first build takes minutes, the child reads the cache
     context = multiprocessing.get_context("spawn")  # never fork a process that holds ZeroMQ threads
     ring = SampleRing.create()
     ours, theirs = context.Pipe()

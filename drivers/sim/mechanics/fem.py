@@ -55,8 +55,10 @@ def depth_lines(thickness_mm: float, fine_mm: float, growth: float = 1.5) -> np.
 class SurfaceCompliance:
     """Factorised layer; columns of the surface compliance (mm per N) on demand."""
 
-    def __init__(self, grid: Grid, modulus_kpa, poisson: float, symmetric_quarter: bool = False) -> None:
-        """modulus_kpa: a number or f(x, y, z) -> kPa at points (3, ...) in mm (inclusions)."""
+    def __init__(self, grid: Grid, modulus_kpa, poisson: float, symmetric_quarter: bool = False,
+                 roller_sides: bool = False) -> None:
+        """modulus_kpa: a number or f(x, y, z) -> kPa at points (3, ...) in mm (inclusions). roller_sides: the
+        four sides slide but do not move out (mirror planes: the layer goes on past them), else they are free."""
         from scipy.sparse.linalg import splu
         from skfem import Basis, ElementTetP2, ElementVector, MeshTet
 
@@ -70,9 +72,14 @@ class SurfaceCompliance:
         if symmetric_quarter:  # the tip on the corner x = y = 0: mirror planes there
             fixed |= (np.isclose(locs[0], grid.xs[0]) & (component == 0))
             fixed |= (np.isclose(locs[1], grid.ys[0]) & (component == 1))
+        if roller_sides:
+            fixed |= (np.isclose(locs[0], grid.xs[0]) | np.isclose(locs[0], grid.xs[-1])) & (component == 0)
+            fixed |= (np.isclose(locs[1], grid.ys[0]) | np.isclose(locs[1], grid.ys[-1])) & (component == 1)
         self.free = np.flatnonzero(~fixed)
         k_free = stiffness[self.free][:, self.free].tocsc()
-        self._lu = splu(k_free, permc_spec="COLAMD")
+        # symmetric positive definite: a symmetric ordering and no pivoting (less fill than COLAMD: a 29k-DOF
+        # layer factorised in 14 s against 22 s, 38M against 44M non-zeros, and back-solves as much faster)
+        self._lu = splu(k_free, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         top = np.isclose(locs[2], 0.0) & (component == 2)
         self.surface_dofs = np.flatnonzero(top)
         self.surface_xy = locs[:2, self.surface_dofs].T.copy()

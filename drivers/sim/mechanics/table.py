@@ -1,0 +1,282 @@
+"""A 3-D scene's force–indentation table F(x, y, δ), built once by finite elements and read per physics step.
+
+Building: one coarse P2-tetrahedra mesh of the whole layer with its inclusions (fem.SurfaceCompliance, one
+factorisation), the surface compliance of every surface node (block back-solves), then at every surface node
+(the table's lateral grid) the frictionless sphere contact (contact.contact_forces_n) at each tabulated depth.
+Reading (TableField): bilinear in x, y and a power law in δ between the tabulated depths, in plain Python.
+The table is cached per scene's mechanical fields (cached_table).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+FORMAT_VERSION = 3  # bump when the table's meaning or the mesh recipe changes: old cache files are ignored
+DEPTHS_MM = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0)
+ELEMENT_MM = 4.0  # lateral element edge: P2 nodes, and so the table's grid, every 2 mm
+SURFACE_ELEMENT_MM = 2.0  # depth of the first element layer under the surface, growing x1.5 downward
+BLOCK_COLUMNS = 128  # right-hand sides per back-solve
+CACHE_ENV = "PALPD_CACHE_DIR"
+
+
+@dataclass
+class ForceTable:
+    """Normal force (N) of the tip at lateral grid point (xs[i], ys[j]) pressed depths_mm[k] into the surface."""
+
+    xs: np.ndarray
+    ys: np.ndarray
+    depths_mm: np.ndarray
+    forces_n: np.ndarray  # (len(xs), len(ys), len(depths_mm))
+    key: str = ""
+    build_s: float = 0.0
+    meta: dict = field(default_factory=dict)
+
+    def save(self, path: Path) -> None:
+        """Atomically: a reader sees the old file or the whole new one, never half of it."""
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle = tempfile.NamedTemporaryFile(dir=path.parent, prefix=path.name + ".", suffix=".tmp", delete=False)
+        try:
+            with handle:
+                np.savez(handle, xs=self.xs, ys=self.ys, depths_mm=self.depths_mm, forces_n=self.forces_n,
+                         key=np.array(self.key), version=np.array(FORMAT_VERSION), build_s=np.array(self.build_s))
+            os.replace(handle.name, path)
+        except BaseException:
+            Path(handle.name).unlink(missing_ok=True)
+            raise
+
+    @classmethod
+    def load(cls, path: Path, key: str) -> "ForceTable":
+        """The table in path; ValueError if it is not a whole table for this key and format."""
+        with np.load(path, allow_pickle=False) as data:
+            if int(data["version"]) != FORMAT_VERSION or str(data["key"]) != key:
+                raise ValueError("another format or scene")
+            table = cls(data["xs"], data["ys"], data["depths_mm"], data["forces_n"], key, float(data["build_s"]))
+        shape = (len(table.xs), len(table.ys), len(table.depths_mm))
+        if table.forces_n.shape != shape or not np.all(np.isfinite(table.forces_n)) or table.forces_n.min() <= 0:
+            raise ValueError("inconsistent arrays")
+        return table
+
+
+def modulus_field(scene):
+    """f(points (3, ...) mm, z up from -thickness to 0) -> kPa: the layer's modulus, each inclusion's inside it."""
+    background, bodies = scene.tissue.modulus_kpa, list(scene.inclusion)
+
+    def modulus(points):
+        e = np.full(points.shape[1:], float(background))
+        for body in bodies:  # a later body wins where two overlap
+            e[body.contains(points[0], points[1], -points[2])] = body.modulus_kpa
+        return e
+
+    return modulus
+
+
+def layer_mesh(scene, element_mm: float = ELEMENT_MM, surface_element_mm: float = SURFACE_ELEMENT_MM):
+    from drivers.sim.mechanics.fem import Grid, depth_lines
+
+    w, h = scene.tissue.size_mm
+    nx, ny = max(1, round(w / element_mm)), max(1, round(h / element_mm))
+    return Grid(np.linspace(-w / 2, w / 2, nx + 1), np.linspace(-h / 2, h / 2, ny + 1),
+                depth_lines(scene.tissue.thickness_mm, surface_element_mm))
+
+
+MAX_UNKNOWNS = 50_000  # paper-3d's 60 x 60 x 20 mm has 31 713 and builds in 1-3 minutes on 2 cores
+
+
+def layer_compliance(scene, element_mm: float = ELEMENT_MM, surface_element_mm: float = SURFACE_ELEMENT_MM):
+    from drivers.sim.mechanics.fem import SurfaceCompliance
+    from drivers.sim.scene import SceneError
+
+    grid = layer_mesh(scene, element_mm, surface_element_mm)
+    unknowns = 3 * (2 * len(grid.xs) - 1) * (2 * len(grid.ys) - 1) * (2 * len(grid.zs) - 1)  # P2 nodes x 3
+    if unknowns > MAX_UNKNOWNS:  # its factor would not fit in minutes or memory here: say so, not hang
+        w, h = scene.tissue.size_mm
+        raise SceneError(f"scene {scene.name!r}: a 3-D tissue {w:g} x {h:g} x {scene.tissue.thickness_mm:g} mm "
+                         f"needs {unknowns} finite-element unknowns, more than the {MAX_UNKNOWNS} the simulator "
+                         "builds (about 70 x 70 x 20 mm): make size_mm or thickness_mm smaller")
+    # the sides on rollers: the palpable rectangle is part of a larger layer, not a block whose free edges read
+    # soft (with free sides its corners read k 0.013 N/mm against 0.08 inside, and a scan of paper-3d took the
+    # whole middle for the lump)
+    return SurfaceCompliance(grid, modulus_field(scene), scene.tissue.poisson, roller_sides=True)
+
+
+def surface_matrix(block, progress: bool = False) -> np.ndarray:
+    """The whole surface compliance (mm per N, symmetric): column j = displacements under 1 N at node j."""
+    from tqdm import tqdm
+
+    n = len(block.surface_dofs)
+    free_rows = block._free_index[block.surface_dofs]
+    matrix = np.empty((n, n))
+    starts = range(0, n, BLOCK_COLUMNS)
+    for start in tqdm(starts, desc="3-D tissue: surface compliance", unit="block", leave=False,
+                      disable=None if progress else True):  # None: only on a terminal
+        stop = min(n, start + BLOCK_COLUMNS)
+        load = np.zeros((len(block.free), stop - start))
+        load[free_rows[start:stop], np.arange(stop - start)] = 1.0
+        matrix[:, start:stop] = block._lu.solve(load)[free_rows]  # 1 N up lifts by C (so 1 N down sinks by C)
+    return (matrix + matrix.T) / 2.0
+
+
+def force_at(surface_xy, compliance, x_mm, y_mm, tip_radius_mm, depths_mm) -> list[float]:
+    """Total normal force of the sphere whose lowest point is at (x, y), pressed each depth into the surface."""
+    from drivers.sim.mechanics.contact import contact_forces_n, sphere_gap_mm
+
+    r = np.hypot(surface_xy[:, 0] - x_mm, surface_xy[:, 1] - y_mm)
+    near = np.flatnonzero(r < tip_radius_mm)
+    sub = compliance[np.ix_(near, near)]
+    gap = sphere_gap_mm(r[near], tip_radius_mm)
+    return [float(contact_forces_n(sub, gap, d).sum()) for d in depths_mm]
+
+
+def build_table(scene, depths_mm=DEPTHS_MM, element_mm: float = ELEMENT_MM,
+                surface_element_mm: float = SURFACE_ELEMENT_MM, progress: bool = False) -> ForceTable:
+    """F(x, y, δ) at every surface node of the layer's mesh (the scene's own frame, before its rotation)."""
+    import time
+
+    from tqdm import tqdm
+
+    started = time.monotonic()
+    block = layer_compliance(scene, element_mm, surface_element_mm)
+    compliance = surface_matrix(block, progress)
+    table = tabulate(scene, block, compliance, depths_mm, progress)
+    table.key = table_key(scene, depths_mm, element_mm, surface_element_mm)
+    table.build_s = time.monotonic() - started
+    return table
+
+
+def tabulate(scene, block, compliance, depths_mm=DEPTHS_MM, progress: bool = False) -> ForceTable:
+    """The contact at every surface node of a factorised layer, given its surface compliance."""
+    from tqdm import tqdm
+
+    xy = block.surface_xy
+    tip = scene.probe.tip_radius_mm
+    xs, ys = (_inside(np.unique(np.round(xy[:, axis], 9)), tip) for axis in (0, 1))
+    forces = np.empty((len(xs), len(ys), len(depths_mm)))
+    points = [(i, j) for i in range(len(xs)) for j in range(len(ys))]
+    for i, j in tqdm(points, desc="3-D tissue: force table", unit="point", leave=False,
+                     disable=None if progress else True):
+        forces[i, j] = force_at(xy, compliance, xs[i], ys[j], tip, depths_mm)
+    return ForceTable(xs, ys, np.asarray(depths_mm, float), _smoothed(forces))
+
+
+def _smoothed(forces: np.ndarray) -> np.ndarray:
+    """Each grid value as 1/4, 1/2, 1/4 of its neighbours along x, then y (mirrored at the edges, as the layer).
+
+    A point load on a quadratic element's corner node and on its mid-side node meet different compliances: the
+    raw table alternates node to node, ±15 % on a homogeneous layer (0.135, 0.156, 0.185 N at 2 mm), a ripple of
+    the mesh, not of the tissue. This filter removes exactly that period-2 pattern and blurs by one node."""
+    for axis in (0, 1):
+        if forces.shape[axis] < 3:
+            continue
+        padded = np.pad(forces, [(1, 1) if a == axis else (0, 0) for a in range(3)], mode="reflect")
+        lo, mid, hi = (np.take(padded, range(k, k + forces.shape[axis]), axis=axis) for k in (0, 1, 2))
+        forces = 0.25 * lo + 0.5 * mid + 0.25 * hi
+    return forces
+
+
+def _inside(lines: np.ndarray, tip_radius_mm: float) -> np.ndarray:
+    """The node lines a tip's radius or more inside the sides: nearer, part of the tip would press past the
+    mesh's side, where the (mirrored) layer goes on but has no nodes, and read half the force. Nearer the sides
+    the table is read at its outermost lines instead."""
+    inner = lines[(lines - lines[0] >= tip_radius_mm - 1e-9) & (lines[-1] - lines >= tip_radius_mm - 1e-9)]
+    return inner if len(inner) >= 2 else lines
+
+
+def table_key(scene, depths_mm=DEPTHS_MM, element_mm=ELEMENT_MM, surface_element_mm=SURFACE_ELEMENT_MM) -> str:
+    """Hash of everything the table depends on: the layer, its inclusions, the tip, the mesh and the format."""
+    tissue = scene.tissue
+    fields = {
+        "version": FORMAT_VERSION,
+        "size_mm": list(tissue.size_mm), "thickness_mm": tissue.thickness_mm, "modulus_kpa": tissue.modulus_kpa,
+        "poisson": tissue.poisson, "inclusions": [body.model_dump() for body in scene.inclusion],
+        "tip_radius_mm": scene.probe.tip_radius_mm, "depths_mm": list(depths_mm), "element_mm": element_mm,
+        "surface_element_mm": surface_element_mm,
+    }
+    return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()
+
+
+def cache_dir() -> Path:
+    """$PALPD_CACHE_DIR, else $XDG_CACHE_HOME/palpd, else ~/.cache/palpd."""
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV])
+    if os.environ.get("XDG_CACHE_HOME"):
+        return Path(os.environ["XDG_CACHE_HOME"]) / "palpd"
+    return Path.home() / ".cache" / "palpd"
+
+
+def cached_table(scene, progress: bool = True) -> ForceTable:
+    """The scene's table from the cache, else built (and cached: a cache that cannot be written only logs)."""
+    key = table_key(scene)
+    path = cache_dir() / f"force-table-{key[:24]}.npz"
+    if path.exists():
+        try:
+            return ForceTable.load(path, key)
+        except Exception as exc:  # a truncated or foreign file: numpy raises many kinds
+            log.warning("3-D tissue table %s unreadable (%s): rebuilding it", path, type(exc).__name__)
+    table = build_table(scene, progress=progress)
+    try:
+        table.save(path)
+    except OSError as exc:
+        log.warning("3-D tissue table not cached in %s: %s", path.parent, exc.strerror or exc)
+    return table
+
+
+class TableField:
+    """The tip's normal force at (x, y) in the scene's frame, depth δ, rate, read from a ForceTable per tick."""
+
+    def __init__(self, table: ForceTable, damping_n_s_per_mm: float = 0.0) -> None:
+        self._xs, self._ys = table.xs.tolist(), table.ys.tolist()
+        self._x0, self._y0 = self._xs[0], self._ys[0]
+        self._dx = (self._xs[-1] - self._x0) / (len(self._xs) - 1)
+        self._dy = (self._ys[-1] - self._y0) / (len(self._ys) - 1)
+        self._depths = table.depths_mm.tolist()
+        log_f = np.log(table.forces_n)
+        log_d = np.log(table.depths_mm)
+        # exponent of each depth interval (the last one also past the deepest depth, the first one below the first)
+        self._exponents = (np.diff(log_f, axis=2) / np.diff(log_d)).tolist()
+        self._forces = table.forces_n.tolist()
+        self._damping = damping_n_s_per_mm
+        self.table = table
+
+    def _interval(self, depth_mm: float) -> int:
+        d = self._depths
+        for k in range(len(d) - 2):
+            if depth_mm < d[k + 1]:
+                return k
+        return len(d) - 2
+
+    def elastic_n(self, x_mm: float, y_mm: float, depth_mm: float) -> float:
+        if depth_mm <= 0.0:
+            return 0.0
+        fx = min(max((x_mm - self._x0) / self._dx, 0.0), len(self._xs) - 1.000001)
+        fy = min(max((y_mm - self._y0) / self._dy, 0.0), len(self._ys) - 1.000001)
+        i, j = int(fx), int(fy)
+        ax, ay = fx - i, fy - j
+        k = self._interval(depth_mm)
+        scale = math.log(depth_mm / self._depths[k])
+        total = 0.0
+        for ii, jj, w in ((i, j, (1 - ax) * (1 - ay)), (i + 1, j, ax * (1 - ay)), (i, j + 1, (1 - ax) * ay),
+                          (i + 1, j + 1, ax * ay)):
+            if w:
+                total += w * self._forces[ii][jj][k] * math.exp(self._exponents[ii][jj][k] * scale)
+        return total
+
+    def force_n(self, x_mm: float, y_mm: float, depth_mm: float, rate_mm_s: float = 0.0) -> float:
+        """Normal force (N), never pulling; a damping term proportional to depth and rate as Hunt–Crossley's."""
+        elastic = self.elastic_n(x_mm, y_mm, depth_mm)
+        if not self._damping or depth_mm <= 0.0:
+            return elastic
+        return max(0.0, elastic + self._damping * depth_mm * rate_mm_s)
+
+    def k_at(self, x_mm: float, y_mm: float) -> float:
+        """Secant stiffness at 1 mm (N/mm), the felt stiffness a 2-D scene's field gives."""
+        return self.elastic_n(x_mm, y_mm, 1.0)
