@@ -18,10 +18,15 @@ def test_bench_loop_reports_servo_and_bare_loop_timing_with_the_simulators_share
     assert loop["compute_us"]["p50"] > figures["bare_loop"]["compute_us"]["p50"]
     assert loop["sim_us"]["p50"] > 0 and loop["host_us"]["p50"] > 0  # the simulated bridge + DAQ run inside the tick
     assert loop["host_us"]["p50"] < loop["compute_us"]["p50"]
+    assert figures["scene"] == "bench"  # the default tissue (--scene names another, a 3-D one too)
 
 
 def test_bench_loop_refuses_a_bad_length(run_cli):
     assert_one_line_error(run_cli("bench", "loop", "--seconds", "-1"), "--seconds")
+
+
+def test_bench_loop_refuses_a_scene_it_cannot_find(run_cli):
+    assert_one_line_error(run_cli("bench", "loop", "--seconds", "0.3", "--scene", "no-such-scene"), "no-such-scene")
 
 
 def test_bench_stall_prints_outcome_true_force_and_motion_after_the_stop_per_pattern(run_cli):

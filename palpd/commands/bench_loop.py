@@ -15,6 +15,9 @@ def add_parser(subparsers):
     loop.add_argument("--seconds", type=float, default=5.0, metavar="S", help="length of each loop (default 5)")
     loop.add_argument("--json", action="store_true", help="print the Bench JSON")
     loop.add_argument("--config", metavar="FILE", help="settings (TOML)")
+    loop.add_argument("--scene", metavar="PATH|NAME",
+                      help="the tissue palpated (default: the 2-D default tissue); a 3-D scene reads its force "
+                           "table every physics step (a cold table is built first: minutes, then cached)")
     return loop
 
 
@@ -28,9 +31,10 @@ def run(args) -> int:
     settings = load_settings(args.config)
     for note in prepare_realtime():
         print(f"palpd: {note}", file=sys.stderr)
+    scene = _scene(args.scene)
     bare = bare_loop(settings.servo.rate_hz, args.seconds)
-    servo, faults = servo_loop(settings, args.seconds)
-    result = {"loop": servo, "bare_loop": bare, "faults": faults}
+    servo, faults = servo_loop(settings, args.seconds, scene)
+    result = {"scene": scene.name, "loop": servo, "bare_loop": bare, "faults": faults}
     if args.json:
         print(json.dumps(result, indent=2))
     else:
@@ -43,6 +47,13 @@ def run(args) -> int:
         print(f"  of the loop's compute, p50/p99: host {r['host_us']['p50']}/{r['host_us']['p99']} us, "
               f"simulator (bridge + DAQ + physics) {r['sim_us']['p50']}/{r['sim_us']['p99']} us")
     return 0
+
+
+def _scene(spec: str | None):
+    from drivers.sim.scene import Scene, load_scene
+    from palpd.shipped import resolve_scene
+
+    return Scene(name="bench") if spec is None else load_scene(resolve_scene(spec))
 
 
 def bare_loop(rate_hz: float, seconds: float) -> dict:
@@ -66,13 +77,13 @@ def bare_loop(rate_hz: float, seconds: float) -> dict:
     return stats.summary()
 
 
-def servo_loop(settings, seconds: float) -> tuple[dict, list[dict]]:
-    """Palpate one point over and over on the simulated bench, on the wall clock, in the servo process."""
-    from drivers.sim.scene import Scene
+def servo_loop(settings, seconds: float, scene=None) -> tuple[dict, list[dict]]:
+    """Palpate one point over and over on the simulated bench (the scene's tissue centre), on the wall clock, in
+    the servo process."""
     from palpd.control.remote import open_servo_bench
     from palpd.errors import ScanFault
 
-    bench = open_servo_bench(settings, Scene(name="bench"), realtime=True)
+    bench = open_servo_bench(settings, scene if scene is not None else _scene(None), realtime=True)
     servo, faults = bench.servo, []
     try:
         servo.start()
