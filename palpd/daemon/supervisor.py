@@ -7,6 +7,7 @@ mid-palpation.
 """
 from __future__ import annotations
 
+import errno
 import logging
 import signal
 import time
@@ -23,10 +24,12 @@ from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.mcap import McapWriter, seal
 from palpd.daemon.notify import Notifier
 from palpd.daemon.samples import SampleDrain
+from palpd.daemon import storage
 from palpd.daemon.session import ensure_writable, find_unfinished, state_directory
 from palpd.daemon.viewers import open_viewers
 from palpd.daemon.worker import WORKER_ENDPOINT, ScanWorker
 from palpd.errors import PalpdError
+from palpd.files import is_storage_error
 
 POLL_MS = 100
 QUIT_GRACE_S = 5.0
@@ -38,7 +41,16 @@ class Supervisor:
         self.settings, self.bench = settings, bench
         self.reopen_bench = reopen_bench  # a new servo process after servo_lost (reset)
         self.security = security or Security.from_settings(settings.bus)
-        self.sessions_dir = ensure_writable(state_directory(settings.daemon.state_dir))
+        self.storage_cause = ""  # the latched `storage` fault's one line ("" when there is none)
+        self._storage_warning = ""
+        self._recovered = False
+        self.sessions_dir = state_directory(settings.daemon.state_dir) / "sessions"
+        try:
+            ensure_writable(self.sessions_dir.parent)
+        except PalpdError as exc:
+            if not is_storage_error(exc):
+                raise
+            self.storage_cause = f"state directory: {exc}"  # comes up in a fault state that says so (open)
         self.notifier = Notifier()
         self.context = zmq.Context()
         self.state, self.message = "configure", ""
@@ -79,9 +91,28 @@ class Supervisor:
         self.inbox.bind(WORKER_ENDPOINT)
         self.worker = ScanWorker(self.context, self.bench, self.settings)
         self.worker.start()
-        self._recover()
-        self.set_state("ready", "recovered an unfinished session" if self.session else "")
+        if not self.storage_cause:
+            self.recover_storage()
+        if self.storage_cause:
+            self.storage_fault()  # up and answering status, which names the cause; reset retries once space is back
+        else:
+            self.set_state("ready", "recovered an unfinished session" if self.session else "")
         self.notifier.ready(self.status_line())
+
+    def recover_storage(self) -> bool:
+        """Recover the unfinished session (once) and prune; False (storage_cause set) on a storage error."""
+        try:
+            if not self._recovered:
+                self._recover()
+            storage.probe_writable(self.sessions_dir)
+            self.prune_sessions()
+        except (OSError, PalpdError) as exc:
+            if not is_storage_error(exc):
+                raise
+            self.storage_cause = storage.cause(exc, "start-up: recovering the sessions", self.sessions_dir)
+            return False
+        self.storage_cause = ""
+        return True
 
     def _bind(self) -> None:
         self.security.start(self.context)
@@ -111,11 +142,12 @@ class Supervisor:
     def _recover(self) -> None:
         session = find_unfinished(self.sessions_dir)
         if session is None:
+            self._recovered = True
             return
-        self.session = session
         for recording in session.path.glob("recording-*.mcap"):
             if seal(recording):  # the crashed run's file, ended properly so Foxglove opens it
                 log.warning("session %s: %s was cut short; sealed what it held", session.name, recording.name)
+        self.session, self._recovered = session, True
         log.info("session %s is unfinished (%d palpations journaled): `scan.start {\"resume\": true}` continues it",
                  session.name, len(session.entries))
         scan = session.meta["scan"] = resolved_scan(OLDER_SESSIONS | session.meta["scan"], self.bench.tissue_size_mm,
@@ -166,8 +198,8 @@ class Supervisor:
                 if command is not None:
                     handlers.dispatch(self, command)
         if self.recording is not None:
-            self.samples.drain(self.bench.servo, self.recording)
-            self.recording.flush_if_due()
+            self._record(self.samples.drain, self.bench.servo, self.recording)
+            self._record(self.recording.flush_if_due)
             if self._settling_since is not None:
                 self._close_when_at_rest()
         if self.job is None and self.state == "ready":
@@ -190,6 +222,8 @@ class Supervisor:
                 self.publish(message["topic"], message["t"], **message["fields"])
             elif message["kind"] == "map":
                 self.show_map(message["map"])
+            elif message["kind"] == "storage":  # the worker could not journal a palpation
+                self.storage_failed(message["what"], message["error"])
             elif message["kind"] == "job_end":
                 handlers.job_ended(self, message["fault"])
 
@@ -245,7 +279,7 @@ class Supervisor:
         elif topic == "fault":
             log.error("fault %s: %s", event.code, event.message)
         if self.recording is not None:
-            self.recording.write(topic, payload)
+            self._record(self.recording.write, topic, payload)
         for viewer in self.viewers:
             viewer.event(topic, payload)
 
@@ -281,7 +315,7 @@ class Supervisor:
             "state": self.state, "message": self.message, "palpations": len(session.entries) if session else 0,
             "session": session.name if session else "", "expected_total": total,
             "resumable": bool(session and self.job is None and session.meta["status"] == "unfinished"),
-            "samples_lost": self.samples.lost,
+            "samples_lost": self.samples.lost, "samples_dropped": self.samples.dropped,
         }
 
     def status_line(self) -> str:
@@ -290,10 +324,68 @@ class Supervisor:
 
     def open_recording(self, session) -> None:
         path = session.next_recording()
-        self.recording = McapWriter(path, recording_schemas())
+        self.samples.start(self.bench.servo)
+        try:
+            self.recording = McapWriter(path, recording_schemas())
+        except OSError as exc:
+            if not is_storage_error(exc):
+                raise
+            self.recording = storage.DroppedRecording(self.samples)
+            self._recording_failed(exc)
+            return
         if self.job is not None:
             self.job.recording = path.name
-        self.samples.start(self.bench.servo)
+
+    # Storage -----------------------------------------------------------------------------------------
+
+    def _record(self, action, *args) -> None:
+        """A write to the recording; a storage error drops the recording (or faults) instead of raising."""
+        try:
+            action(*args)
+        except OSError as exc:
+            if not is_storage_error(exc):
+                raise
+            self._recording_failed(exc)
+
+    def _recording_failed(self, exc: OSError) -> None:
+        """A full disk drops the raw recording first, so the journal keeps what room is left; a failing or
+        read-only disk is a storage fault at once."""
+        if not isinstance(self.recording, storage.DroppedRecording):
+            if self.recording is not None:
+                self.recording.abandon()
+            self.recording = storage.DroppedRecording(self.samples)
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            log.warning("raw samples are no longer recorded, palpations are still journaled: %s",
+                        storage.cause(exc, "recording", self.sessions_dir))
+        else:
+            self.storage_failed("recording", exc)
+
+    def storage_failed(self, what: str, exc: BaseException) -> None:
+        """A storage error is a `storage` fault: a scan under way stops (the palpation under way finishes, the
+        arm parks clear of the tissue: a category-1 stop); the daemon stays up, serving status and events."""
+        if self.storage_cause:
+            return  # the first cause is the one to fix
+        self.storage_cause = storage.cause(exc, what, self.sessions_dir)
+        if self.job is not None:
+            self.job.stop_reason = "storage"
+            self.worker.request_stop()  # job_ended makes it the fault once the arm is parked
+        else:
+            self.storage_fault()
+
+    def storage_fault(self) -> None:
+        message = self.storage_cause + (f" ({self.samples.dropped} raw samples not recorded)"
+                                        if self.samples.dropped else "")
+        self.publish("fault", self.now(), code="storage", message=message)
+        self.set_state("fault", f"storage: {self.storage_cause}")
+
+    def prune_sessions(self) -> None:
+        daemon = self.settings.daemon
+        in_use = {s.name for s in (self.session, self.probe_session) if s is not None}
+        storage.prune(self.sessions_dir, daemon.max_sessions_mb, daemon.keep_days, in_use)
+        warning = storage.usage_warning(self.sessions_dir, daemon.max_sessions_mb)
+        if warning and warning.split(":")[0] != self._storage_warning.split(":")[0]:
+            log.warning("%s", warning)
+        self._storage_warning = warning
 
     def end_recording(self, fault: dict | None) -> None:
         """The scan's recording ends now, or after a category-0 stop (the current cut where the arm was: it
@@ -317,7 +409,7 @@ class Supervisor:
     def close_recording(self) -> None:
         self._settling_since = None
         if self.recording is not None:
-            self.samples.drain(self.bench.servo, self.recording)
+            self._record(self.samples.drain, self.bench.servo, self.recording)
             self.samples.stop()
-            self.recording.close()
+            self._record(self.recording.close)
             self.recording = None
