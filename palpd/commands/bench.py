@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import importlib
 
-BENCHMARKS: list[str] = ["loop", "stall", "learner", "tradeoff", "drivers", "hotpath", "extremes", "mechanics"]
+BENCHMARKS: list[str] = ["loop", "stall", "learner", "tradeoff", "drivers", "hotpath", "extremes", "mechanics", "soak"]
 
 
 def add_parser(subparsers):
