@@ -104,6 +104,8 @@ class Supervisor:
         try:
             if not self._recovered:
                 self._recover()
+            elif self.session is not None:  # a storage fault mid-scan cut its recording: sealed now there is room
+                self._seal_recordings(self.session)
             storage.probe_writable(self.sessions_dir)
             self.prune_sessions()
         except (OSError, PalpdError) as exc:
@@ -144,9 +146,7 @@ class Supervisor:
         if session is None:
             self._recovered = True
             return
-        for recording in session.path.glob("recording-*.mcap"):
-            if seal(recording):  # the crashed run's file, ended properly so Foxglove opens it
-                log.warning("session %s: %s was cut short; sealed what it held", session.name, recording.name)
+        self._seal_recordings(session)
         self.session, self._recovered = session, True
         log.info("session %s is unfinished (%d palpations journaled): `scan.start {\"resume\": true}` continues it",
                  session.name, len(session.entries))
@@ -161,6 +161,12 @@ class Supervisor:
         self.show_map(self.estimator.posterior_map())
         for viewer in self.viewers:
             viewer.probes(handlers.probe_records(session.entries), session.name)
+
+    @staticmethod
+    def _seal_recordings(session) -> None:
+        for recording in session.path.glob("recording-*.mcap"):
+            if seal(recording):  # the crashed run's file, ended properly so Foxglove opens it
+                log.warning("session %s: %s was cut short; sealed what it held", session.name, recording.name)
 
     def close(self) -> None:
         for viewer in self.viewers:
