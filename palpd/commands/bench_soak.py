@@ -19,6 +19,7 @@ from pathlib import Path
 
 MB = 1 << 20
 READY_TIMEOUT_S = 120.0
+SETTLE_S = 1.0  # after a scan, before measuring: the client's event subscription has closed on the daemon's side
 
 
 def add_parser(subparsers):
@@ -80,6 +81,7 @@ def _soak(args, daemon: subprocess.Popen, sessions: Path, scratch: Path) -> list
         while time.monotonic() - started < args.minutes * 60:
             t0 = time.monotonic()
             status = client.scan("raster", wait=True, max_palpations=args.palpations, wait_timeout_s=600.0)
+            time.sleep(SETTLE_S)
             row = {"scan": len(rows) + 1, "wall_s": round(time.monotonic() - t0, 1), "state": status.state,
                    "palpations": status.palpations, **measure(daemon.pid, sessions)}
             rows.append(row)

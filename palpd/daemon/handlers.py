@@ -75,6 +75,7 @@ def scan_start(sup, command) -> None:
     scan = resolved_scan(scan, sup.bench.tissue_size_mm, sup.settings)
     sup.session = Session.create(sup.sessions_dir, scan)
     sup.show_map(None)
+    sup.estimator = None  # the last session's learner goes before the next is built: one in memory, not two
     sup.estimator = make_estimator(scan_settings(sup.settings, scan), scan, sup.bench.tissue_size_mm)
     _start(sup, command, discarded)
 
