@@ -81,8 +81,9 @@ def _soak(args, daemon: subprocess.Popen, sessions: Path, scratch: Path) -> list
         while time.monotonic() - started < args.minutes * 60:
             t0 = time.monotonic()
             status = client.scan("raster", wait=True, max_palpations=args.palpations, wait_timeout_s=600.0)
+            wall_s = round(time.monotonic() - t0, 1)
             time.sleep(SETTLE_S)
-            row = {"scan": len(rows) + 1, "wall_s": round(time.monotonic() - t0, 1), "state": status.state,
+            row = {"scan": len(rows) + 1, "wall_s": wall_s, "state": status.state,
                    "palpations": status.palpations, **measure(daemon.pid, sessions)}
             rows.append(row)
             if not args.json:
