@@ -160,3 +160,24 @@ def test_back_to_back_scans_keep_the_sessions_under_max_sessions_mb(tmp_path, ru
         assert table.returncode == 0 and f"of daemon.max_sessions_mb = {limit_mb:g}" in table.stdout, table.stderr
     finally:
         daemon.close()
+
+
+def test_the_soak_measures_memory_fds_shared_memory_and_storage_of_a_process(tmp_path):
+    """`palpd bench soak`'s figures, read from /proc (here of this process: no servo child)."""
+    import os
+    from multiprocessing import shared_memory
+
+    from palpd.commands.bench_soak import measure, summarize
+
+    (tmp_path / "s").mkdir()
+    (tmp_path / "s" / "f").write_bytes(b"\0" * (1 << 20))
+    segment = shared_memory.SharedMemory(create=True, size=4096)
+    try:
+        row = measure(os.getpid(), tmp_path / "s")
+    finally:
+        segment.close()
+        segment.unlink()
+    assert row["daemon_rss_mb"] > 10 and row["daemon_fds"] > 3 and row["servo_rss_mb"] is None
+    assert row["shm_segments"] >= 1 and row["sessions_mb"] == 1.0
+    rows = [{**row, "daemon_rss_mb": 100.0}, {**row, "daemon_rss_mb": 104.0}]
+    assert summarize(rows)["daemon_rss_mb"]["change_percent"] == 4.0

@@ -7,7 +7,6 @@ mid-palpation.
 """
 from __future__ import annotations
 
-import errno
 import logging
 import signal
 import time
@@ -18,14 +17,14 @@ from palpd.bus.commands import CommandServer
 from palpd.bus.messages import SCHEMA_VERSION, recording_schemas
 from palpd.bus.publisher import EventPublisher
 from palpd.bus.security import Security
-from palpd.daemon import handlers
+from palpd.daemon import handlers, storage
 from palpd.daemon.jobs import OLDER_SESSIONS, resolved_scan
 from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.mcap import McapWriter, seal
 from palpd.daemon.notify import Notifier
 from palpd.daemon.samples import SampleDrain
-from palpd.daemon import storage
 from palpd.daemon.session import ensure_writable, find_unfinished, state_directory
+from palpd.daemon.storage_faults import StorageFaults
 from palpd.daemon.viewers import open_viewers
 from palpd.daemon.worker import WORKER_ENDPOINT, ScanWorker
 from palpd.errors import PalpdError
@@ -36,7 +35,7 @@ QUIT_GRACE_S = 5.0
 log = logging.getLogger("palpd.daemon")
 
 
-class Supervisor:
+class Supervisor(StorageFaults):
     def __init__(self, settings, bench, reopen_bench=None, security: Security | None = None) -> None:
         self.settings, self.bench = settings, bench
         self.reopen_bench = reopen_bench  # a new servo process after servo_lost (reset)
@@ -98,23 +97,6 @@ class Supervisor:
         else:
             self.set_state("ready", "recovered an unfinished session" if self.session else "")
         self.notifier.ready(self.status_line())
-
-    def recover_storage(self) -> bool:
-        """Recover the unfinished session (once) and prune; False (storage_cause set) on a storage error."""
-        try:
-            if not self._recovered:
-                self._recover()
-            elif self.session is not None:  # a storage fault mid-scan cut its recording: sealed now there is room
-                self._seal_recordings(self.session)
-            storage.probe_writable(self.sessions_dir)
-            self.prune_sessions()
-        except (OSError, PalpdError) as exc:
-            if not is_storage_error(exc):
-                raise
-            self.storage_cause = storage.cause(exc, "start-up: recovering the sessions", self.sessions_dir)
-            return False
-        self.storage_cause = ""
-        return True
 
     def _bind(self) -> None:
         self.security.start(self.context)
@@ -341,57 +323,6 @@ class Supervisor:
             return
         if self.job is not None:
             self.job.recording = path.name
-
-    # Storage -----------------------------------------------------------------------------------------
-
-    def _record(self, action, *args) -> None:
-        """A write to the recording; a storage error drops the recording (or faults) instead of raising."""
-        try:
-            action(*args)
-        except OSError as exc:
-            if not is_storage_error(exc):
-                raise
-            self._recording_failed(exc)
-
-    def _recording_failed(self, exc: OSError) -> None:
-        """A full disk drops the raw recording first, so the journal keeps what room is left; a failing or
-        read-only disk is a storage fault at once."""
-        if not isinstance(self.recording, storage.DroppedRecording):
-            if self.recording is not None:
-                self.recording.abandon()
-            self.recording = storage.DroppedRecording(self.samples)
-        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
-            log.warning("raw samples are no longer recorded, palpations are still journaled: %s",
-                        storage.cause(exc, "recording", self.sessions_dir))
-        else:
-            self.storage_failed("recording", exc)
-
-    def storage_failed(self, what: str, exc: BaseException) -> None:
-        """A storage error is a `storage` fault: a scan under way stops (the palpation under way finishes, the
-        arm parks clear of the tissue: a category-1 stop); the daemon stays up, serving status and events."""
-        if self.storage_cause:
-            return  # the first cause is the one to fix
-        self.storage_cause = storage.cause(exc, what, self.sessions_dir)
-        if self.job is not None:
-            self.job.stop_reason = "storage"
-            self.worker.request_stop()  # job_ended makes it the fault once the arm is parked
-        else:
-            self.storage_fault()
-
-    def storage_fault(self) -> None:
-        message = self.storage_cause + (f" ({self.samples.dropped} raw samples not recorded)"
-                                        if self.samples.dropped else "")
-        self.publish("fault", self.now(), code="storage", message=message)
-        self.set_state("fault", f"storage: {self.storage_cause}")
-
-    def prune_sessions(self) -> None:
-        daemon = self.settings.daemon
-        in_use = {s.name for s in (self.session, self.probe_session) if s is not None}
-        storage.prune(self.sessions_dir, daemon.max_sessions_mb, daemon.keep_days, in_use)
-        warning = storage.usage_warning(self.sessions_dir, daemon.max_sessions_mb)
-        if warning and warning.split(":")[0] != self._storage_warning.split(":")[0]:
-            log.warning("%s", warning)
-        self._storage_warning = warning
 
     def end_recording(self, fault: dict | None) -> None:
         """The scan's recording ends now, or after a category-0 stop (the current cut where the arm was: it
