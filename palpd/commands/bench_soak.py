@@ -39,6 +39,7 @@ def run(args) -> int:
 
     if args.minutes <= 0 or args.palpations < 1:
         raise UsageError("palpd bench soak: --minutes must be above 0 and --palpations at least 1")
+    signal.signal(signal.SIGTERM, signal.default_int_handler)  # stopped early: the daemon it started stops too
     with tempfile.TemporaryDirectory(prefix="palpd-soak-") as scratch:
         state = Path(args.state_dir or scratch)
         state.mkdir(parents=True, exist_ok=True)
