@@ -136,8 +136,11 @@ class FilesystemUsage(BaseModel):
 
     model_config = SENT
     total_mb: float
+    """Its size, MiB."""
     free_mb: float
+    """Free, MiB."""
     used_percent: float
+    """Used, % of its size."""
 
 
 class SessionsReply(Reply):

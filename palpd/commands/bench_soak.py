@@ -1,4 +1,4 @@
-"""palpd bench soak: back-to-back scans through a real `palpd serve` on the wall clock, for N minutes.
+"""bench soak: back-to-back scans through a real `palpd serve` on the wall clock, for N minutes.
 
 After each scan it prints the daemon's and the servo process's resident memory,
 their open file descriptors, the shared-memory segments they map and the size of
@@ -38,7 +38,7 @@ def run(args) -> int:
     from palpd.errors import UsageError
 
     if args.minutes <= 0 or args.palpations < 1:
-        raise UsageError("palpd bench soak: --minutes must be above 0 and --palpations at least 1")
+        raise UsageError("bench soak: --minutes must be above 0 and --palpations at least 1")
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # stopped early: the daemon it started stops too
     with tempfile.TemporaryDirectory(prefix="palpd-soak-") as scratch:
         state = Path(args.state_dir or scratch)
@@ -90,7 +90,7 @@ def _soak(args, daemon: subprocess.Popen, sessions: Path, scratch: Path) -> list
             if not args.json:
                 print(row_line(row), flush=True)
             if status.state != "ready":
-                print(f"palpd bench soak: scan {row['scan']} ended in {status.message}", file=sys.stderr)
+                print(f"bench soak: scan {row['scan']} ended in {status.message}", file=sys.stderr)
                 break
     return rows
 
@@ -101,14 +101,14 @@ def _wait_ready(client, daemon) -> None:
     give_up = time.monotonic() + READY_TIMEOUT_S
     while time.monotonic() < give_up:
         if daemon.poll() is not None:
-            raise PalpdError(f"palpd bench soak: the daemon exited {daemon.returncode} (see serve.log)")
+            raise PalpdError(f"bench soak: the daemon exited {daemon.returncode} (see serve.log)")
         try:
             if client.status().state == "ready":
                 return
         except TimeoutError:
             pass
         time.sleep(0.2)
-    raise PalpdError(f"palpd bench soak: the daemon was not ready within {READY_TIMEOUT_S:g} s")
+    raise PalpdError(f"bench soak: the daemon was not ready within {READY_TIMEOUT_S:g} s")
 
 
 def measure(pid: int, sessions: Path) -> dict:
