@@ -1,4 +1,4 @@
-"""bench soak: back-to-back scans through a real `palpd serve` on the wall clock, for N minutes.
+"""palpd bench soak: back-to-back scans through a real `palpd serve` on the wall clock, for N minutes.
 
 After each scan it prints the daemon's and the servo process's resident memory,
 their open file descriptors, the shared-memory segments they map and the size of
