@@ -104,8 +104,8 @@ def run(client, args) -> int:
 
 
 def sessions_table(reply) -> str:
-    lines = [f"{'session':<20} {'status':<11} {'palpations':>10} {'MB':>9}"]
-    lines += [f"{s.name:<20} {s.status:<11} {s.palpations:>10} {s.size_mb:>9.1f}" for s in reply.sessions]
+    lines = [f"{'session':<20} {'status':<11} {'MB':>9}"]
+    lines += [f"{s.name:<20} {s.status:<11} {s.size_mb:>9.1f}" for s in reply.sessions]
     fs = reply.filesystem
     lines.append(f"{len(reply.sessions)} sessions, {reply.total_mb:.1f} MB of daemon.max_sessions_mb = "
                  f"{reply.max_sessions_mb:g}" + (f", kept {reply.keep_days:g} days" if reply.keep_days else "")

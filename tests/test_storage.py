@@ -72,7 +72,7 @@ def test_a_full_disk_drops_the_raw_samples_first_and_keeps_journaling(tmp_path):
         assert len(read_journal(only_session(daemon) / "journal.jsonl")) == 4
         listed = daemon.call("sessions")
         assert listed["ok"] and listed["samples_dropped"] == daemon.call("status")["samples_dropped"]
-        assert [(s["status"], s["palpations"]) for s in listed["sessions"]] == [("finished", 4)]
+        assert [s["status"] for s in listed["sessions"]] == ["finished"] and listed["sessions"][0]["size_mb"] > 0.1
     finally:
         daemon.close()
 

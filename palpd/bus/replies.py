@@ -125,8 +125,6 @@ class SessionRecord(BaseModel):
     """unfinished, finished, abandoned, probes (single palpations), or unreadable."""
     size_mb: float
     """Its files together, MiB."""
-    palpations: int
-    """Journaled palpations."""
     created: float
     """Unix time."""
 
