@@ -181,3 +181,14 @@ def test_the_soak_measures_memory_fds_shared_memory_and_storage_of_a_process(tmp
     assert row["shm_segments"] >= 1 and row["sessions_mb"] == 1.0
     rows = [{**row, "daemon_rss_mb": 100.0}, {**row, "daemon_rss_mb": 104.0}]
     assert summarize(rows)["daemon_rss_mb"]["change_percent"] == 4.0
+
+
+def test_a_warning_at_90_percent_of_the_limit_or_of_the_filesystem(tmp_path, monkeypatch):
+    from palpd.daemon import storage
+
+    make_session(tmp_path, "20260101-000000", "finished", 950_000)
+    monkeypatch.setattr(storage, "disk_usage", lambda path: (100 << 20, 50 << 20, 50 << 20))
+    assert storage.usage_warning(tmp_path, max_mb=2.0) == ""
+    assert storage.usage_warning(tmp_path, max_mb=1.0).startswith("sessions use 0.9 MB of daemon.max_sessions_mb = 1")
+    monkeypatch.setattr(storage, "disk_usage", lambda path: (100 << 20, 95 << 20, 5 << 20))
+    assert storage.usage_warning(tmp_path, max_mb=2.0).startswith("the disk is nearly full: filesystem of")
