@@ -186,8 +186,8 @@ def sessions(sup, command) -> None:
                        filesystem=storage.filesystem(sup.sessions_dir), samples_dropped=sup.samples.dropped)
 
 
-HANDLERS = {"status": status, "sessions": sessions, "estimate.get": estimate_get, "scan.start": scan_start, "scan.stop": scan_stop,
-            "estop": estop, "reset": reset, "probe.at": probe_at, "bias": bias}
+HANDLERS = {"status": status, "estimate.get": estimate_get, "scan.start": scan_start, "scan.stop": scan_stop,
+            "estop": estop, "reset": reset, "probe.at": probe_at, "bias": bias, "sessions": sessions}
 
 
 def job_ended(sup, fault: dict | None) -> None:
