@@ -64,7 +64,8 @@ def run(args) -> int:
 
 def _start_daemon(args, state: Path, scratch: Path) -> subprocess.Popen:
     env = {**os.environ, "PALPD_BUS__EVENTS": f"ipc://{scratch}/events",
-           "PALPD_BUS__COMMANDS": f"ipc://{scratch}/commands", "PALPD_DAEMON__HTTP": "", "PALPD_DAEMON__STATE_DIR": str(state), "PALPD_DAEMON__REALTIME": "true"}
+           "PALPD_BUS__COMMANDS": f"ipc://{scratch}/commands", "PALPD_DAEMON__HTTP": "",
+           "PALPD_DAEMON__STATE_DIR": str(state), "PALPD_DAEMON__REALTIME": "true"}
     if args.max_sessions_mb is not None:
         env["PALPD_DAEMON__MAX_SESSIONS_MB"] = str(args.max_sessions_mb)
     command = [sys.executable, "-m", "palpd", "serve", *(["--config", args.config] if args.config else [])]
@@ -163,7 +164,8 @@ def shm_segments(pid: int) -> set[str]:
 def row_line(row: dict) -> str:
     return (f"scan {row['scan']:3d}  {row['wall_s']:5.1f} s  {row['state']:6s} {row['palpations']:2d} palpations  "
             f"daemon {row['daemon_rss_mb']:6.1f} MB {row['daemon_fds']:3d} fds  "
-            f"servo {row['servo_rss_mb'] or 0:6.1f} MB {row['servo_fds'] or 0:3d} fds  shm {row['shm_segments']}  sessions {row['sessions_mb']:6.2f} MB")
+            f"servo {row['servo_rss_mb'] or 0:6.1f} MB {row['servo_fds'] or 0:3d} fds  shm {row['shm_segments']}  "
+            f"sessions {row['sessions_mb']:6.2f} MB")
 
 
 def summarize(rows: list[dict]) -> dict:

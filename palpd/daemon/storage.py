@@ -30,7 +30,8 @@ def fullness(directory: Path) -> str:
         total, used, _ = disk_usage(directory)
     except OSError as exc:
         return f"filesystem of {directory}: size unknown ({exc.strerror})"
-    return f"filesystem of {directory}: {used / MB:.1f} of {total / MB:.1f} MB used ({100 * used / max(total, 1):.0f} %)"
+    percent = 100 * used / max(total, 1)
+    return f"filesystem of {directory}: {used / MB:.1f} of {total / MB:.1f} MB used ({percent:.0f} %)"
 
 
 def cause(exc: BaseException, what: str, directory: Path) -> str:
@@ -106,7 +107,8 @@ def usage_warning(sessions_dir: Path, max_mb: float) -> str:
     """A line when the sessions use WARN_FRACTION of their limit or the filesystem is that full, else ''."""
     total_mb = sum(s["size_mb"] for s in list_sessions(sessions_dir))
     if total_mb >= WARN_FRACTION * max_mb:
-        return f"sessions use {total_mb:.1f} MB of daemon.max_sessions_mb = {max_mb:g} (unfinished ones are never pruned)"
+        return (f"sessions use {total_mb:.1f} MB of daemon.max_sessions_mb = {max_mb:g} "
+                "(unfinished ones are never pruned)")
     try:
         total, used, _ = disk_usage(sessions_dir)
     except OSError:
