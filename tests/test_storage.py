@@ -192,3 +192,19 @@ def test_a_warning_at_90_percent_of_the_limit_or_of_the_filesystem(tmp_path, mon
     assert storage.usage_warning(tmp_path, max_mb=1.0).startswith("sessions use 0.9 MB of daemon.max_sessions_mb = 1")
     monkeypatch.setattr(storage, "disk_usage", lambda path: (100 << 20, 95 << 20, 5 << 20))
     assert storage.usage_warning(tmp_path, max_mb=2.0).startswith("the disk is nearly full: filesystem of")
+
+
+def test_a_scan_start_that_cannot_write_its_session_is_refused_as_a_storage_fault(tmp_path):
+    daemon = FullDiskDaemon(tmp_path, disk_bytes=0, files=".session.json.tmp")  # session.json, written atomically
+    try:
+        daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
+        refused = daemon.call("scan.start", {"strategy": "raster", "max_palpations": 4})
+        assert refused["error"]["code"] == "storage" and "cannot write: No space left" in refused["error"]["message"]
+        status = daemon.call("status")
+        assert status["state"] == "fault" and status["message"].startswith("storage: scan.start: ")
+        daemon.freed.touch()
+        assert daemon.call("reset")["ok"]
+        daemon.wait_for(lambda s: s["state"] == "ready", what="ready after reset")
+        assert daemon.call("scan.start", {"strategy": "raster", "max_palpations": 1})["ok"]
+    finally:
+        daemon.close()
