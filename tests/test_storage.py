@@ -202,6 +202,7 @@ def test_a_scan_start_that_cannot_write_its_session_is_refused_as_a_storage_faul
         assert refused["error"]["code"] == "storage" and "cannot write: No space left" in refused["error"]["message"]
         status = daemon.call("status")
         assert status["state"] == "fault" and status["message"].startswith("storage: scan.start: ")
+        assert not list((daemon.state_dir / "sessions").iterdir())  # no session without its session.json
         daemon.freed.touch()
         assert daemon.call("reset")["ok"]
         daemon.wait_for(lambda s: s["state"] == "ready", what="ready after reset")

@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import time
 from pathlib import Path
 
-from palpd.errors import ConfigError, StorageError
+from palpd.errors import ConfigError, PalpdError, StorageError
 from palpd.files import is_storage_error, open_for_writing, write_json
 
 JOURNAL, META = "journal.jsonl", "session.json"
@@ -41,7 +42,11 @@ class Session:
             path = sessions_dir / f"{name}-{suffix}"
         path.mkdir(parents=True)
         session = cls(path, {"name": path.name, "status": status, "scan": scan_args, "created": time.time()}, [])
-        session.save_meta()
+        try:
+            session.save_meta()
+        except PalpdError:  # a full disk: no session without its session.json left behind
+            shutil.rmtree(path, ignore_errors=True)
+            raise
         return session
 
     @classmethod
