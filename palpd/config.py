@@ -242,6 +242,9 @@ class DaemonSettings(_Section):
     http: str = "127.0.0.1:8080"  # the live web view, HOST:PORT (port 0: any free port); "" = off
     http_token: str = ""  # required for a non-loopback `http`: clients send it as ?token= or Authorization: Bearer
     foxglove: str = ""  # HOST:PORT of a Foxglove WebSocket server (needs the foxglove extra); "" = off
+    # Finished sessions beyond this many MiB in all are pruned, oldest first (never an unfinished one)
+    max_sessions_mb: Annotated[float, Field(gt=0, le=10_000_000)] = 2048.0
+    keep_days: Annotated[float, Field(ge=0, le=36500)] = 0.0  # finished sessions older are pruned; 0 = no age limit
 
 
 class Settings(_Section):

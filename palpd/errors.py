@@ -19,5 +19,14 @@ class UsageError(PalpdError):
     exit_code = EXIT_USAGE
 
 
+class StorageError(PalpdError):
+    """A file could not be written because the storage failed (ENOSPC, EIO, EROFS, EDQUOT): the daemon makes it a
+    `storage` fault, never an exit. `errno` says which."""
+
+    def __init__(self, message: str, errno: int | None = None) -> None:
+        super().__init__(message)
+        self.errno = errno
+
+
 class ScanFault(PalpdError):
     """The safety supervisor stopped the robot; the fault is latched until reset."""

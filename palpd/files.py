@@ -1,12 +1,33 @@
 """Writing result files so that a crash never leaves half a file behind."""
 from __future__ import annotations
 
+import errno
 import json
 import os
+import shutil
 import tempfile
 from pathlib import Path
 
-from palpd.errors import PalpdError
+from palpd.errors import PalpdError, StorageError
+
+# What the storage, not the caller, got wrong: a full disk or quota, a failing disk, a filesystem remounted
+# read-only. The daemon makes these a `storage` fault; anything else stays a bug or a configuration error.
+STORAGE_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EROFS})
+
+
+def open_for_writing(path: str | Path, mode: str = "w"):
+    """Every file the daemon writes its sessions to is opened here: the one seam where tests put a disk that fills
+    up after N bytes (tests/full_disk.py), so the storage faults are tested without mounting anything."""
+    return open(path, mode)
+
+
+def disk_usage(path: str | Path):
+    """(total, used, free) bytes of the filesystem holding `path` (the seam's other half: how full it is)."""
+    return shutil.disk_usage(path)
+
+
+def is_storage_error(exc: BaseException) -> bool:
+    return isinstance(exc, StorageError) or (isinstance(exc, OSError) and exc.errno in STORAGE_ERRNOS)
 
 
 def check_writable(*paths: str | Path | None) -> None:
@@ -44,10 +65,12 @@ def write_text(path: str | Path, text: str) -> None:
     path = Path(path)
     temporary = path.with_name(f".{path.name}.tmp")
     try:
-        with temporary.open("w") as handle:
+        with open_for_writing(temporary, "w") as handle:
             handle.write(text)
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(temporary, path)
     except OSError as exc:
+        if exc.errno in STORAGE_ERRNOS:
+            raise StorageError(f"{path}: cannot write: {exc.strerror}", exc.errno) from None
         raise PalpdError(f"{path}: cannot write: {exc.strerror}") from None

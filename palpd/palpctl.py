@@ -59,6 +59,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "of the palpable rectangle, x and y along its sides (e.g. `palpctl probe 7.5 -4`).")
     probe.add_argument("x_mm", type=float, metavar="X", help="mm along the tissue's x side, from its centre")
     probe.add_argument("y_mm", type=float, metavar="Y", help="mm along the tissue's y side, from its centre")
+    sessions = commands.add_parser("sessions", help="the sessions on disk: size and state, and the storage limits")
+    sessions.add_argument("--json", action="store_true", help="the reply as JSON instead of a table")
     commands.add_parser("watch", help="one line per palpation, estimate, state change and fault, until interrupted")
     plot = commands.add_parser("plot", help="picture of the posterior map, probes and lumps with their uncertainty")
     plot.add_argument("file", metavar="FILE.png")
@@ -87,6 +89,9 @@ def run(client, args) -> int:
             return _ended_in_fault(client, reply, "the scan")
     elif args.command == "probe":
         return _probe(client, args)
+    elif args.command == "sessions" and not args.json:
+        print(sessions_table(client.call("sessions")))
+        return 0
     elif args.command == "bias":
         reply = client.bias(wait=True)  # idle again when it returns: `palpctl bias; palpctl probe X Y` works
         if reply.state == "fault":
@@ -96,6 +101,17 @@ def run(client, args) -> int:
         reply = client.call(cmd)
     print(json.dumps(reply.model_dump(mode="json", exclude={"id", "ok"}), indent=2))
     return 0
+
+
+def sessions_table(reply) -> str:
+    lines = [f"{'session':<20} {'status':<11} {'MB':>9}"]
+    lines += [f"{s.name:<20} {s.status:<11} {s.size_mb:>9.1f}" for s in reply.sessions]
+    fs = reply.filesystem
+    lines.append(f"{len(reply.sessions)} sessions, {reply.total_mb:.1f} MB of daemon.max_sessions_mb = "
+                 f"{reply.max_sessions_mb:g}" + (f", kept {reply.keep_days:g} days" if reply.keep_days else "")
+                 + f"; filesystem {fs.used_percent:.0f} % full, {fs.free_mb:.0f} MB free"
+                 + (f"; {reply.samples_dropped} raw samples not recorded (disk full)" if reply.samples_dropped else ""))
+    return "\n".join(lines)
 
 
 def _ended_in_fault(client, status, what: str) -> int:

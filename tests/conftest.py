@@ -72,7 +72,7 @@ WALL_CLOCK_GROUP = "wall_clock"
 # 19 s, unlisted, ended the run 6-9 s after the other two workers). Modules not listed are short.
 LONGEST_FIRST = (WALL_CLOCK_GROUP, "test_learner", "test_active_scan", "test_scan", "test_service_api", "test_daemon",
                  "test_examples",
-                 "test_learner_parts", "test_daemon_service", "test_bus_security", "test_daemon_sliding",
+                 "test_learner_parts", "test_daemon_service", "test_storage", "test_bus_security", "test_daemon_sliding",
                  "test_daemon_learner", "test_study", "test_tradeoff", "test_extremes", "test_sensor_health",
                  "test_stalls", "test_learner_posterior", "test_config", "test_stiffness", "test_bus_commands",
                  "test_palpctl_watch", "test_codec", "test_segment", "test_bench_learner", "test_learner_service",

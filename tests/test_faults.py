@@ -195,7 +195,7 @@ def test_every_fault_code_has_its_stop_category():
     assert CATEGORY_0 == {"estop", "amplifier_fault", "watchdog", "over_temperature", "encoder_jump", "robot_link"}
     for code in ("force_cap", "rigid_contact", "tracking_error", "loop_stall", "stale_sample", "invalid_sample",
                  "saturated", "joint_limit", "workspace", "speed", "task_timeout", "sensor_link", "servo_lost",
-                 "sensor_frozen", "sensor_drift", "indentation"):
+                 "sensor_frozen", "sensor_drift", "indentation", "storage"):
         assert stop_category(code) == 1
 
 

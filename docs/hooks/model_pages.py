@@ -16,7 +16,7 @@ from pydantic import BaseModel
 
 UNITS = {"_mm_s2": "mm/s²", "_mm_s": "mm/s", "_n_per_mm": "N/mm", "_n_s_per_mm": "N·s/mm", "_rad_s": "rad/s",
          "_mm": "mm", "_n": "N", "_s": "s", "_hz": "Hz", "_a": "A", "_rad": "rad", "_deg": "°", "_mb": "MB",
-         "_kpa": "kPa"}
+         "_kpa": "kPa", "_days": "days"}
 
 
 def field_comments(model: type[BaseModel]) -> dict[str, str]:

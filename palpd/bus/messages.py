@@ -56,6 +56,9 @@ class Status(Event):
     """An unfinished session waits for scan.start {"resume": true}."""
     samples_lost: int = 0
     """Raw samples the recorder missed (the servo ring lapped it); should stay 0."""
+    samples_dropped: int = 0
+    """Raw samples not recorded on purpose since the daemon started: the disk was full, and the journal of
+    palpations comes first."""
 
 
 class Palpation(Event):
@@ -274,11 +277,11 @@ class ProbeAtArgs(_Args):
 
 COMMAND_ARGS: dict[str, type[BaseModel]] = {
     "status": NoArgs, "scan.start": ScanStartArgs, "scan.stop": NoArgs, "estop": NoArgs, "reset": NoArgs,
-    "estimate.get": NoArgs, "probe.at": ProbeAtArgs, "bias": NoArgs,
+    "estimate.get": NoArgs, "probe.at": ProbeAtArgs, "bias": NoArgs, "sessions": NoArgs,
 }
 # What observers may send: reading, and stopping the arm (an emergency stop is open to every authenticated
 # client, as a hardware e-stop button is to everyone in the room); restarting it (reset) needs an operator.
-OBSERVER_COMMANDS = ("status", "estimate.get", "estop")
+OBSERVER_COMMANDS = ("status", "estimate.get", "sessions", "estop")
 
 
 class Request(BaseModel):

@@ -115,7 +115,51 @@ class EstimateGetReply(Reply):
     """The learner's posterior (null before the first stiffness point)."""
 
 
+class SessionRecord(BaseModel):
+    """One session directory under the state directory."""
+
+    model_config = SENT
+    name: str
+    """The directory's name (its start time)."""
+    status: str
+    """unfinished, finished, abandoned, probes (single palpations), or unreadable."""
+    size_mb: float
+    """Its files together, MiB."""
+    created: float
+    """Unix time."""
+
+
+class FilesystemUsage(BaseModel):
+    """The filesystem the sessions live on."""
+
+    model_config = SENT
+    total_mb: float
+    """Its size, MiB."""
+    free_mb: float
+    """Free, MiB."""
+    used_percent: float
+    """Used, % of its size."""
+
+
+class SessionsReply(Reply):
+    """The sessions on disk, oldest first, with their sizes and the storage limits (`palpctl sessions`)."""
+
+    sessions: list[SessionRecord]
+    """Every session, oldest first."""
+    total_mb: float
+    """All sessions together, MiB."""
+    max_sessions_mb: float
+    """daemon.max_sessions_mb: finished sessions beyond it are pruned, oldest first."""
+    keep_days: float
+    """daemon.keep_days: finished sessions older than this are pruned (0: no age limit)."""
+    filesystem: FilesystemUsage
+    """How full the sessions' filesystem is."""
+    samples_dropped: int = 0
+    """Raw samples not recorded because the disk was full (as in status)."""
+
+
 REPLY_MODELS: dict[str, type[Reply]] = {
     "status": StatusReply, "scan.start": ScanStartReply, "scan.stop": ScanStopReply, "estop": EstopReply,
     "reset": ResetReply, "estimate.get": EstimateGetReply, "probe.at": AcceptedReply, "bias": AcceptedReply,
+    "sessions": SessionsReply,
 }

@@ -8,7 +8,7 @@ from __future__ import annotations
 import importlib
 
 BENCHMARKS: list[str] = ["loop", "stall", "learner", "tradeoff", "calibration", "drivers", "hotpath", "extremes",
-                          "mechanics"]
+                          "mechanics", "soak"]
 
 
 def add_parser(subparsers):

@@ -5,6 +5,7 @@ from palpd.control.safety import Fault
 from palpd.control.tasks import MoveTo
 from palpd.daemon.learning import DEFAULT_MAX_PALPATIONS, LearnerPlan
 from palpd.errors import PalpdError, ScanFault
+from palpd.files import is_storage_error
 from palpd.scan import PARK_HEIGHT_MM, FixedPlan, palpate, plan
 from palpd.stiffness import load_solvers
 
@@ -126,6 +127,21 @@ def publish_entry(worker, entry: dict) -> None:
                      stiffness_sd_n_per_mm=entry["stiffness_sd_n_per_mm"])
 
 
+def journaled(worker, session, entry: dict) -> bool:
+    """Journal the entry (fsync); on a storage error the scan stops (the supervisor makes it a `storage` fault
+    once the arm is parked) and the palpation, not on the disk, is neither published nor learned from."""
+    try:
+        session.journal(entry)
+    except OSError as exc:
+        if not is_storage_error(exc):
+            raise
+        worker.request_stop()
+        worker.send({"kind": "storage", "what": f"journaling palpation {entry['index']} of session {session.name}",
+                     "error": exc})
+        return False
+    return True
+
+
 class ScanJob:
     """Palpate the plan's remaining points; each palpation is journaled (fsync) before it is published."""
 
@@ -145,7 +161,8 @@ class ScanJob:
         if isinstance(self.planner, PathCount):  # a sliding reading: its path, so a resumed scan goes on from there
             entry |= {"palpation": "sliding", "path": self.planner.current}
         entry["recording"] = self.recording  # whose raw samples hold it (each run's servo clock starts anew)
-        self.session.journal(entry)
+        if not journaled(worker, self.session, entry):
+            return
         self.estimator.observe(entry["xy_mm"], entry["stiffness_n_per_mm"], entry["stiffness_sd_n_per_mm"] or 0.0,
                                entry.get("target_xy_mm"), entry.get("outcome"), entry.get("stiffness_bound_n_per_mm"))
         publish_entry(worker, entry)
@@ -172,8 +189,8 @@ class ProbeJob:
             servo.stop()
         entry = journal_entry(len(self.session.entries), probe, worker.bench.clock.now())
         entry["recording"] = self.recording  # whose raw samples hold it, as a scan's entries say
-        self.session.journal(entry)
-        publish_entry(worker, entry)
+        if journaled(worker, self.session, entry):
+            publish_entry(worker, entry)
 
 
 class RestartServoJob:

@@ -21,6 +21,7 @@ from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from palpd.bus.messages import SAMPLES_CHANNEL, RawSample
+from palpd.files import open_for_writing
 
 MAGIC = b"\x89MCAP0\r\n"
 FLUSH_INTERVAL_S = 1.0  # a crash loses at most this much of the recording
@@ -31,7 +32,7 @@ class McapWriter:
     """Appends JSON messages to channels named by topic; finishes a chunk at least once a second."""
 
     def __init__(self, path: Path, schemas: dict[str, dict], library: str = "palpd") -> None:
-        self._file = open(path, "wb")
+        self._file = open_for_writing(path, "wb")
         self._writer = Writer(self._file, chunk_size=CHUNK_BYTES, compression=CompressionType.ZSTD)
         self._writer.start(profile="", library=library)
         self._channels = {topic: self._register(topic, schema) for topic, schema in schemas.items()}
@@ -84,8 +85,17 @@ class McapWriter:
     def close(self) -> None:
         if self._file.closed:
             return
-        self._writer.finish()  # the last chunk, then the summary: indexes, statistics, footer
-        self._file.close()
+        try:
+            self._writer.finish()  # the last chunk, then the summary: indexes, statistics, footer
+        finally:
+            self._file.close()
+
+    def abandon(self) -> None:
+        """After a storage error: close the file as it is (a restart seals what it holds), raising nothing."""
+        try:
+            self._file.close()
+        except OSError:
+            pass
 
 
 def is_closed(path: Path) -> bool:
@@ -126,7 +136,17 @@ def seal(path: Path) -> bool:
             return False
     schemas, channels, messages = _complete_records(path)
     temporary = path.with_name(f".{path.name}.sealing")
-    with open(temporary, "wb") as handle:
+    try:
+        _rewrite(temporary, schemas, channels, messages)
+    except OSError:
+        temporary.unlink(missing_ok=True)  # a full disk: no half-sealed copy left beside the original
+        raise
+    os.replace(temporary, path)
+    return True
+
+
+def _rewrite(temporary: Path, schemas, channels, messages) -> None:
+    with open_for_writing(temporary, "wb") as handle:
         writer = Writer(handle, chunk_size=CHUNK_BYTES, compression=CompressionType.ZSTD)
         writer.start(profile="", library="palpd (sealed after a crash)")
         schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in schemas.items()}
@@ -137,8 +157,6 @@ def seal(path: Path) -> bool:
         writer.finish()
         handle.flush()
         os.fsync(handle.fileno())
-    os.replace(temporary, path)
-    return True
 
 
 def read_messages(path: Path) -> list[tuple[str, dict]]:

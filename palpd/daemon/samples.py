@@ -34,6 +34,7 @@ class SampleDrain:
         self.source = None  # whose ring next_index counts in
         self.lost = 0
         self.recorded = 0
+        self.dropped = 0  # not recorded on purpose: the disk was full (storage.DroppedRecording)
         self.recent: deque = deque(maxlen=REST_SAMPLES)  # (t_s, tip_mm) of the newest samples drained
         self.drained_at = time.monotonic()  # when a sample last came
 

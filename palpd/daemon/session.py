@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import time
 from pathlib import Path
 
-from palpd.errors import ConfigError
-from palpd.files import write_json
+from palpd.errors import ConfigError, PalpdError, StorageError
+from palpd.files import is_storage_error, open_for_writing, write_json
 
 JOURNAL, META = "journal.jsonl", "session.json"
 UNFINISHED = "unfinished"
@@ -41,7 +42,11 @@ class Session:
             path = sessions_dir / f"{name}-{suffix}"
         path.mkdir(parents=True)
         session = cls(path, {"name": path.name, "status": status, "scan": scan_args, "created": time.time()}, [])
-        session.save_meta()
+        try:
+            session.save_meta()
+        except PalpdError:  # a full disk: no session without its session.json left behind
+            shutil.rmtree(path, ignore_errors=True)
+            raise
         return session
 
     @classmethod
@@ -62,12 +67,26 @@ class Session:
         return self.path / f"recording-{runs + 1}.mcap"
 
     def journal(self, entry: dict) -> None:
-        if self._journal is None:
-            self._journal = _open_for_append(self.path / JOURNAL)
-        self._journal.write(json.dumps(entry) + "\n")
-        self._journal.flush()
-        os.fsync(self._journal.fileno())
+        """Append and fsync one palpation; on a storage error the journal is dropped (a torn line is cut when it
+        is opened again) and the error raised: the entry counts only once it is on the disk."""
+        try:
+            if self._journal is None:
+                self._journal = _open_for_append(self.path / JOURNAL)
+            self._journal.write(json.dumps(entry) + "\n")
+            self._journal.flush()
+            os.fsync(self._journal.fileno())
+        except OSError:
+            self._drop_journal()
+            raise
         self.entries.append(entry)
+
+    def _drop_journal(self) -> None:
+        journal, self._journal = self._journal, None
+        if journal is not None:
+            try:
+                journal.close()  # flushes what the failed write left buffered: fails again, and closes anyway
+            except OSError:
+                pass
 
     def finish(self, status: str) -> None:
         self.meta["status"] = status
@@ -76,9 +95,7 @@ class Session:
 
     def close(self) -> None:
         """The journal closed, the session as it is (an unfinished one stays resumable)."""
-        if self._journal is not None:
-            self._journal.close()
-            self._journal = None
+        self._drop_journal()
 
 
 def read_journal(path: Path) -> list[dict]:
@@ -104,7 +121,7 @@ def _open_for_append(path: Path):
         if keep != len(data):
             with path.open("r+b") as handle:
                 handle.truncate(keep)
-    return path.open("a")
+    return open_for_writing(path, "a")
 
 
 def find_unfinished(sessions_dir: Path) -> Session | None:
@@ -126,6 +143,8 @@ def ensure_writable(directory: Path) -> Path:
     try:
         sessions.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
+        if is_storage_error(exc):
+            raise StorageError(f"cannot create {sessions}: {exc.strerror}", exc.errno) from None
         raise ConfigError(f"daemon.state_dir: cannot create {sessions}: {exc.strerror}") from None
     if not os.access(sessions, os.W_OK):
         raise ConfigError(f"daemon.state_dir: {sessions} is not writable")

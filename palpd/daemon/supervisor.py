@@ -17,28 +17,39 @@ from palpd.bus.commands import CommandServer
 from palpd.bus.messages import SCHEMA_VERSION, recording_schemas
 from palpd.bus.publisher import EventPublisher
 from palpd.bus.security import Security
-from palpd.daemon import handlers
+from palpd.daemon import handlers, storage
 from palpd.daemon.jobs import OLDER_SESSIONS, resolved_scan
 from palpd.daemon.learning import make_estimator, scan_settings
 from palpd.daemon.mcap import McapWriter, seal
 from palpd.daemon.notify import Notifier
 from palpd.daemon.samples import SampleDrain
 from palpd.daemon.session import ensure_writable, find_unfinished, state_directory
+from palpd.daemon.storage_faults import StorageFaults
 from palpd.daemon.viewers import open_viewers
 from palpd.daemon.worker import WORKER_ENDPOINT, ScanWorker
 from palpd.errors import PalpdError
+from palpd.files import is_storage_error
 
 POLL_MS = 100
 QUIT_GRACE_S = 5.0
 log = logging.getLogger("palpd.daemon")
 
 
-class Supervisor:
+class Supervisor(StorageFaults):
     def __init__(self, settings, bench, reopen_bench=None, security: Security | None = None) -> None:
         self.settings, self.bench = settings, bench
         self.reopen_bench = reopen_bench  # a new servo process after servo_lost (reset)
         self.security = security or Security.from_settings(settings.bus)
-        self.sessions_dir = ensure_writable(state_directory(settings.daemon.state_dir))
+        self.storage_cause = ""  # the latched `storage` fault's one line ("" when there is none)
+        self._storage_warning = ""
+        self._recovered = False
+        self.sessions_dir = state_directory(settings.daemon.state_dir) / "sessions"
+        try:
+            ensure_writable(self.sessions_dir.parent)
+        except PalpdError as exc:
+            if not is_storage_error(exc):
+                raise
+            self.storage_cause = f"state directory: {exc}"  # comes up in a fault state that says so (open)
         self.notifier = Notifier()
         self.context = zmq.Context()
         self.state, self.message = "configure", ""
@@ -79,8 +90,12 @@ class Supervisor:
         self.inbox.bind(WORKER_ENDPOINT)
         self.worker = ScanWorker(self.context, self.bench, self.settings)
         self.worker.start()
-        self._recover()
-        self.set_state("ready", "recovered an unfinished session" if self.session else "")
+        if not self.storage_cause:
+            self.recover_storage()
+        if self.storage_cause:
+            self.storage_fault()  # up and answering status, which names the cause; reset retries once space is back
+        else:
+            self.set_state("ready", "recovered an unfinished session" if self.session else "")
         self.notifier.ready(self.status_line())
 
     def _bind(self) -> None:
@@ -111,11 +126,10 @@ class Supervisor:
     def _recover(self) -> None:
         session = find_unfinished(self.sessions_dir)
         if session is None:
+            self._recovered = True
             return
-        self.session = session
-        for recording in session.path.glob("recording-*.mcap"):
-            if seal(recording):  # the crashed run's file, ended properly so Foxglove opens it
-                log.warning("session %s: %s was cut short; sealed what it held", session.name, recording.name)
+        self._seal_recordings(session)
+        self.session, self._recovered = session, True
         log.info("session %s is unfinished (%d palpations journaled): `scan.start {\"resume\": true}` continues it",
                  session.name, len(session.entries))
         scan = session.meta["scan"] = resolved_scan(OLDER_SESSIONS | session.meta["scan"], self.bench.tissue_size_mm,
@@ -129,6 +143,12 @@ class Supervisor:
         self.show_map(self.estimator.posterior_map())
         for viewer in self.viewers:
             viewer.probes(handlers.probe_records(session.entries), session.name)
+
+    @staticmethod
+    def _seal_recordings(session) -> None:
+        for recording in session.path.glob("recording-*.mcap"):
+            if seal(recording):  # the crashed run's file, ended properly so Foxglove opens it
+                log.warning("session %s: %s was cut short; sealed what it held", session.name, recording.name)
 
     def close(self) -> None:
         for viewer in self.viewers:
@@ -166,8 +186,8 @@ class Supervisor:
                 if command is not None:
                     handlers.dispatch(self, command)
         if self.recording is not None:
-            self.samples.drain(self.bench.servo, self.recording)
-            self.recording.flush_if_due()
+            self._record(self.samples.drain, self.bench.servo, self.recording)
+            self._record(self.recording.flush_if_due)
             if self._settling_since is not None:
                 self._close_when_at_rest()
         if self.job is None and self.state == "ready":
@@ -190,6 +210,8 @@ class Supervisor:
                 self.publish(message["topic"], message["t"], **message["fields"])
             elif message["kind"] == "map":
                 self.show_map(message["map"])
+            elif message["kind"] == "storage":  # the worker could not journal a palpation
+                self.storage_failed(message["what"], message["error"])
             elif message["kind"] == "job_end":
                 handlers.job_ended(self, message["fault"])
 
@@ -245,7 +267,7 @@ class Supervisor:
         elif topic == "fault":
             log.error("fault %s: %s", event.code, event.message)
         if self.recording is not None:
-            self.recording.write(topic, payload)
+            self._record(self.recording.write, topic, payload)
         for viewer in self.viewers:
             viewer.event(topic, payload)
 
@@ -281,7 +303,7 @@ class Supervisor:
             "state": self.state, "message": self.message, "palpations": len(session.entries) if session else 0,
             "session": session.name if session else "", "expected_total": total,
             "resumable": bool(session and self.job is None and session.meta["status"] == "unfinished"),
-            "samples_lost": self.samples.lost,
+            "samples_lost": self.samples.lost, "samples_dropped": self.samples.dropped,
         }
 
     def status_line(self) -> str:
@@ -290,10 +312,17 @@ class Supervisor:
 
     def open_recording(self, session) -> None:
         path = session.next_recording()
-        self.recording = McapWriter(path, recording_schemas())
+        self.samples.start(self.bench.servo)
+        try:
+            self.recording = McapWriter(path, recording_schemas())
+        except OSError as exc:
+            if not is_storage_error(exc):
+                raise
+            self.recording = storage.DroppedRecording(self.samples)
+            self._recording_failed(exc)
+            return
         if self.job is not None:
             self.job.recording = path.name
-        self.samples.start(self.bench.servo)
 
     def end_recording(self, fault: dict | None) -> None:
         """The scan's recording ends now, or after a category-0 stop (the current cut where the arm was: it
@@ -317,7 +346,7 @@ class Supervisor:
     def close_recording(self) -> None:
         self._settling_since = None
         if self.recording is not None:
-            self.samples.drain(self.bench.servo, self.recording)
+            self._record(self.samples.drain, self.bench.servo, self.recording)
             self.samples.stop()
-            self.recording.close()
+            self._record(self.recording.close)
             self.recording = None
