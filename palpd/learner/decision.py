@@ -146,11 +146,11 @@ class Decision:
         return self._holds_now() and self._count_doubt(stopping=True) is None
 
     def _holds_now(self) -> bool:
-        """The stop rule but for the count checks only a stop asks (`_count_doubt(stopping=True)`: a hole
-        beside lumps found together and a rival's decisive spot weigh the whole grid, so they are looked for
-        once all else holds)."""
-        return (self._count_made() and self._count_doubt() is None and self._unexplored() is None
-                and self._boundary_known() and self._readings_explained())
+        """The stop rule but for the count checks only a stop asks (`_count_doubt(stopping=True)`: an
+        unexplored spot, which next_probe fills before it asks this; a hole beside lumps found together and a
+        rival's decisive spot, which weigh the whole grid, so they are looked for once all else holds)."""
+        return self._count_made() and self._count_doubt() is None and self._boundary_known() \
+            and self._readings_explained()
 
     def _boundary_known(self) -> bool:
         """(b) of the stop rule."""
