@@ -188,3 +188,22 @@ def test_palpd_scan_refuses_a_3d_tissue_too_large_to_build_with_exit_78(run_cli,
     result = run_cli("scan", "--scene", tmp_path / "big.toml", "--max-palpations", "2")
     assert result.returncode == 78
     assert_one_line_error(result, "100 x 100 x 20 mm", "unknowns")
+
+
+def test_every_shipped_3d_scene_ships_its_table_and_reads_it_without_a_build(tmp_path, monkeypatch):
+    from conftest import SCENES
+    from drivers.sim.scene import load_scene
+
+    monkeypatch.setenv("PALPD_CACHE_DIR", str(tmp_path))  # an empty cache: the table must come as shipped
+    scenes = [scene for scene in map(load_scene, sorted(SCENES.glob("*.toml"))) if scene.tissue.is_3d]
+    assert {"paper-3d", "sphere-3d"} <= {scene.name for scene in scenes}
+    shipped = set()
+    for scene in scenes:
+        key = T.table_key(scene)
+        path = T.SHIPPED_DIR / T.table_file_name(key)
+        assert path.exists(), f"{scene.name}: no table of its key shipped: run `make tables`"
+        table = T.cached_table(scene, progress=False)
+        assert table.key == key and table.forces_n.shape == (31, 31, len(T.DEPTHS_MM))  # 2 mm nodes over 60 mm
+        shipped.add(path.name)
+    assert not list(tmp_path.iterdir())  # nothing was built into the cache
+    assert sorted(p.name for p in T.SHIPPED_DIR.glob("*.npz")) == sorted(shipped)  # and no stale table ships

@@ -30,6 +30,9 @@ MARGIN_MM = 10.0  # the layer meshed this far past each side of the palpable rec
 MARGIN_GROWTH = 1.5  # the margin's elements growing outward by this factor
 BLOCK_COLUMNS = 128  # right-hand sides per back-solve
 CACHE_ENV = "PALPD_CACHE_DIR"
+# The shipped 3-D scenes' tables, built by `make tables` (scripts/build_force_tables.py) and read before the
+# user's cache: a first `make run` starts at once instead of after a minutes-long build.
+SHIPPED_DIR = Path(__file__).parent / "tables"
 
 
 @dataclass
@@ -50,8 +53,10 @@ class ForceTable:
         handle = tempfile.NamedTemporaryFile(dir=path.parent, prefix=path.name + ".", suffix=".tmp", delete=False)
         try:
             with handle:
-                np.savez(handle, xs=self.xs, ys=self.ys, depths_mm=self.depths_mm, forces_n=self.forces_n,
-                         key=np.array(self.key), version=np.array(FORMAT_VERSION), build_s=np.array(self.build_s))
+                np.savez_compressed(handle, xs=self.xs, ys=self.ys, depths_mm=self.depths_mm,
+                                    forces_n=self.forces_n,
+                                    key=np.array(self.key), version=np.array(FORMAT_VERSION),
+                                    build_s=np.array(self.build_s))
             os.replace(handle.name, path)
         except BaseException:
             Path(handle.name).unlink(missing_ok=True)
@@ -241,15 +246,21 @@ def cache_dir() -> Path:
     return Path.home() / ".cache" / "palpd"
 
 
+def table_file_name(key: str) -> str:
+    return f"force-table-{key[:24]}.npz"
+
+
 def cached_table(scene, progress: bool = True) -> ForceTable:
-    """The scene's table from the cache, else built (and cached: a cache that cannot be written only logs)."""
+    """The scene's table as shipped or cached, else built (and cached: a cache that cannot be written only logs)."""
     key = table_key(scene)
-    path = cache_dir() / f"force-table-{key[:24]}.npz"
-    if path.exists():
-        try:
-            return ForceTable.load(path, key)
-        except Exception as exc:  # a truncated or foreign file: numpy raises many kinds
-            log.warning("3-D tissue table %s unreadable (%s): rebuilding it", path, type(exc).__name__)
+    name = table_file_name(key)
+    for path in (SHIPPED_DIR / name, cache_dir() / name):
+        if path.exists():
+            try:
+                return ForceTable.load(path, key)
+            except Exception as exc:  # a truncated or foreign file: numpy raises many kinds
+                log.warning("3-D tissue table %s unreadable (%s): rebuilding it", path, type(exc).__name__)
+    path = cache_dir() / name
     table = build_table(scene, progress=progress)
     try:
         table.save(path)
