@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT := out
 
-.PHONY: run test reproduce figures tables docs clean
+.PHONY: run test reproduce figures tables surrogate docs clean
 
 # setuptools notes every editable install of a mapped layout (config/ ships as palpd.share) at length:
 # informational only, so hidden. pip at -qq says only errors: a first `make run` printed its warnings about
@@ -35,6 +35,10 @@ reproduce: $(BIN)/palpd
 # The shipped 3-D scenes' force tables (drivers/sim/mechanics/tables/), rebuilt where a scene or the recipe changed.
 tables: $(BIN)/palpd
 	$(BIN)/python scripts/build_force_tables.py
+
+# The learner's depth surrogate (palpd/learner/depth_surrogate.json), refitted to the finite-element tissue.
+surrogate: $(BIN)/palpd
+	$(BIN)/python scripts/fit_depth_surrogate.py
 
 # The tables and pictures the README and the manual include, measured here and stamped with the commit.
 figures: $(BIN)/palpd

@@ -35,6 +35,8 @@ class LumpEstimate:
     edge_sd_mm: float | None = None
     boundary_sd_mm: float | None = None  # free-form or cut: the boundary's position sd, RMS along it (on the tissue)
     cut_by_edge: bool = False  # mostly off the tissue: centre and radius are of its part on the tissue
+    depth_mm: float | None = None  # where modelled: its top below the surface, from how it is felt (learner.depth)
+    depth_sd_mm: float | None = None
 
     def as_dict(self) -> dict:
         out = {
@@ -47,7 +49,7 @@ class LumpEstimate:
         for name in ("axes_mm", "axes_sd_mm"):
             if getattr(self, name) is not None:
                 out[name] = [round(v, 3) for v in getattr(self, name)]
-        for name in ("angle_deg", "angle_sd_deg", "edge_mm", "edge_sd_mm", "boundary_sd_mm"):
+        for name in ("angle_deg", "angle_sd_deg", "edge_mm", "edge_sd_mm", "boundary_sd_mm", "depth_mm", "depth_sd_mm"):
             if getattr(self, name) is not None:
                 out[name] = round(getattr(self, name), 3)
         if self.cut_by_edge:

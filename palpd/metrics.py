@@ -133,6 +133,7 @@ def compare(truth: list[dict], lumps: list[dict], size_mm=None) -> dict:
             "center_error_mm": round(math.dist(est["center_mm"], centre), 3),
             "radius_error_mm": round(abs(est["radius_mm"] - radius), 3),
             "iou": round(iou(est["boundary_mm"], true, size_mm), 4),
+            **_depth_error(true, est),
         })
     found = [m for m in per_lump if m["found"]]
     return {
@@ -143,8 +144,20 @@ def compare(truth: list[dict], lumps: list[dict], size_mm=None) -> dict:
         "max_center_error_mm": max((m["center_error_mm"] for m in found), default=None),
         "max_radius_error_mm": max((m["radius_error_mm"] for m in found), default=None),
         "min_iou": min((m["iou"] for m in found), default=None),
+        **({"max_depth_error_mm": max(m["depth_error_mm"] for m in found if "depth_error_mm" in m)}
+           if any("depth_error_mm" in m for m in found) else {}),
         "per_lump": per_lump,
     }
+
+
+def _depth_error(true: dict, est: dict) -> dict:
+    """A 3-D scene's inclusion (its truth names its shape) against the reported depth: the error, and in sds.
+    A 2-D scene's lump depth only widens a drawn edge: no depth to compare with."""
+    if "shape" not in true or est.get("depth_mm") is None or true.get("depth_mm") is None:
+        return {}
+    error = est["depth_mm"] - true["depth_mm"]
+    sd = est.get("depth_sd_mm") or 0.0
+    return {"depth_error_mm": round(abs(error), 3), "depth_error_sd": round(abs(error) / sd, 2) if sd > 0 else None}
 
 
 def part_on_tissue(true: dict, size_mm) -> tuple[list[float], float]:

@@ -131,6 +131,11 @@ def draw_lumps(ax, lumps: list[dict], model: dict | None = None) -> None:
                 label=(f"estimated lump ({chosen})" if chosen else "estimated lump") if i == 0 else None)
         ax.add_patch(Circle(centre, max(lump["center_sd_mm"], 0.2), color=LUMP, alpha=0.35, zorder=6,
                             label="centre ± 1 sd" if i == 0 else None))
+        if lump.get("depth_mm") is not None:  # how deep its top lies, below its boundary's lowest point
+            ax.annotate(f"top {lump['depth_mm']:.1f} ± {lump['depth_sd_mm']:.1f} mm deep",
+                        (centre[0], boundary[:, 1].min()), xytext=(0, -4), textcoords="offset points",
+                        ha="center", va="top", fontsize=PROBE_NUMBER_PT, color=LUMP, zorder=9,
+                        path_effects=[withStroke(linewidth=2.2, foreground="white")])
 
 
 def draw_soft_regions(ax, model: dict | None) -> None:

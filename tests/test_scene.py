@@ -273,11 +273,8 @@ def test_invalid_3d_scenes_are_rejected_with_one_clear_line(tmp_path, text, mess
     assert message in str(error.value)
 
 
-SCENES_3D = ROOT / "docs" / "examples" / "scenes-3d"  # 3-D examples (issue 49); paper-3d also ships in config/scenes
-
-
 def test_a_3d_scene_truth_is_each_stiff_inclusion_footprint_with_the_depth_of_its_top(tmp_path):
-    sphere = load_scene(SCENES_3D / "sphere-3d.toml")
+    sphere = load_scene(ROOT / "config" / "scenes" / "sphere-3d.toml")
     assert sphere.tissue.is_3d and sphere.probe.tip_radius_mm == 2.5
     [truth] = truth_lumps(sphere)
     assert truth["center_mm"] == [7.5, -4.0] and truth["radius_mm"] == 5.0 and truth["depth_mm"] == 3.0

@@ -128,6 +128,11 @@ class LumpMsg(BaseModel):
     """Where modelled: the edge width, 75 % to 25 % of the lump's height along a radius."""
     edge_sd_mm: Optional[float] = None
     """Where modelled: its standard deviation."""
+    depth_mm: Optional[float] = None
+    """Where modelled: the depth of its top below the surface, from its contrast, size and edge (a surrogate of
+    the finite-element tissue: docs/learner.md, "Depth")."""
+    depth_sd_mm: Optional[float] = None
+    """Where modelled: its standard deviation."""
     boundary_sd_mm: Optional[float] = None
     """Free-form regions and lumps cut by the tissue's edge: the sd of the boundary's position across itself,
     RMS along it (on the tissue)."""

@@ -129,7 +129,8 @@ def _summary(report: dict) -> str:
     m = report["metrics"]
     if m["lumps_true"] or m["false_lumps"]:
         lines.append(f"vs truth: {m['lumps_found']}/{m['lumps_true']} found, {m['false_lumps']} false, "
-                     f"centre error {_mm(m['max_center_error_mm'])}, radius error {_mm(m['max_radius_error_mm'])}")
+                     f"centre error {_mm(m['max_center_error_mm'])}, radius error {_mm(m['max_radius_error_mm'])}"
+                     + (f", depth error {_mm(m['max_depth_error_mm'])}" if "max_depth_error_mm" in m else ""))
     return "\n".join(lines)
 
 
@@ -161,6 +162,8 @@ def _lump_line(lump: dict) -> str:
         text += f", {whole} {a:.2f} ± {sa:.2f} / {b:.2f} ± {sb:.2f} mm at {lump['angle_deg']:.1f}°"
     if "edge_mm" in lump:
         text += f", edge {lump['edge_mm']:.2f} mm"
+    if "depth_mm" in lump:
+        text += f", top {lump['depth_mm']:.1f} ± {lump['depth_sd_mm']:.1f} mm deep"
     return text
 
 

@@ -3,7 +3,8 @@
 Centre, radius (an ellipse's equal-area radius, plus its axes and angle), edge
 width and their standard deviations come from the Laplace covariance through
 the Jacobian of each reported quantity; the boundary is the lump's 50 % contour
-(or, with a supervised τ, its contour at τ), on the tissue.
+(or, with a supervised τ, its contour at τ), on the tissue. The depth of its
+top follows from its contrast, radius and edge (depth.py).
 
 A lump with most of its boundary off the tissue (a stiff region running past
 the tissue's edge, as a measured map may have) is reported by its part on the
@@ -20,8 +21,10 @@ import math
 
 import numpy as np
 
+from dataclasses import replace
+
 from palpd.estimate import LumpEstimate
-from palpd.learner import shapes
+from palpd.learner import depth, shapes
 from palpd.learner.evidence import Fit
 from palpd.learner.priors import profile_branch
 
@@ -38,8 +41,23 @@ def lumps_of(fit: Fit, tau_n_per_mm: float | None = None, size_mm=None) -> list[
         part = fit.family.lump_slice(j)
         scale = 1.0 if tau_n_per_mm is None else _level_scale(fit, part, tau_n_per_mm)
         if scale is not None:
-            out.append(_one(fit.theta[part], fit.cov[part, part], fit.family.kind == "ellipses", scale, half))
+            lump = _one(fit.theta[part], fit.cov[part, part], fit.family.kind == "ellipses", scale, half)
+            out.append(_with_depth(lump, fit.theta[part], fit.cov[part, part]))
     return out
+
+
+def _with_depth(lump: LumpEstimate, params: np.ndarray, cov: np.ndarray) -> LumpEstimate:
+    """The lump with its top's depth from its profile: contrast, size and edge (depth.py). The size is the
+    profile's own radius, an ellipse's minor semi-axis, and the edge is read along it: across a rod, where its
+    depth shows, not along it (in units of ρ the edge is the same all round, in mm it scales with the axis)."""
+    radius = math.exp(params[2])
+    ellipse = lump.axes_mm is not None
+    size = shapes.axes_and_angle(params, ellipse)[1]
+    size_sd = radius * math.sqrt(max(cov[2, 2], 0.0)) if not ellipse else _sd(_axes_jacobian(params)[1], cov)
+    across = size / radius
+    sds = (math.sqrt(max(cov[-1, -1], 0.0)), size_sd, across * (lump.edge_sd_mm or 0.0))
+    top, sd = depth.surrogate().estimate(math.exp(params[-1]), size, across * shapes.edge_width_mm(params), sds)
+    return replace(lump, depth_mm=top, depth_sd_mm=sd)
 
 
 def soft_regions_of(fit: Fit | None) -> list[dict]:

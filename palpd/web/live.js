@@ -215,7 +215,8 @@ function panel() {
   text("undecided", m && m.undecided ? `not yet: ${m.undecided}` : "");
   list("lumps", ((e && e.lumps) || []).map((l, i) =>
     `lump ${i + 1}: centre (${l.center_mm[0].toFixed(1)}, ${l.center_mm[1].toFixed(1)}) ± ${l.center_sd_mm.toFixed(2)} mm, ` +
-    `radius ${l.radius_mm.toFixed(1)} ± ${l.radius_sd_mm.toFixed(2)} mm`).concat(((m && m.soft_regions) || []).map((r) =>
+    `radius ${l.radius_mm.toFixed(1)} ± ${l.radius_sd_mm.toFixed(2)} mm` +
+    (l.depth_mm != null ? `, top ${l.depth_mm.toFixed(1)} ± ${l.depth_sd_mm.toFixed(1)} mm deep` : "")).concat(((m && m.soft_regions) || []).map((r) =>
     `no lump: tissue ${r.softer}× softer around (${r.center_mm[0].toFixed(1)}, ${r.center_mm[1].toFixed(1)}), ` +
     `radius ${r.radius_mm.toFixed(1)} mm`)), e && e.points ? "no lump" : "none yet");
   list("faults", view.faults.map((x) => `${x.code}: ${x.message}`), "none");
