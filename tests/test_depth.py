@@ -52,3 +52,11 @@ def test_depth_is_compared_only_with_a_3d_scenes_inclusions():
     m = metrics.compare([inclusion], [lump])
     assert m["max_depth_error_mm"] == pytest.approx(0.5) and m["per_lump"][0]["depth_error_sd"] == pytest.approx(1.0)
     assert "max_depth_error_mm" not in metrics.compare([drawn], [lump])
+
+
+def test_a_lump_beyond_what_the_surrogate_was_fitted_on_is_given_a_wider_sd():
+    s = depth.surrogate()
+    widest = s.ranges["radius_mm"][1]
+    (top_in, sd_in), (top_out, sd_out) = s.estimate(0.5, widest, 3.5), s.estimate(0.5, 1.6 * widest, 3.5)
+    assert top_out == pytest.approx(top_in)  # held at the fitted range's end...
+    assert sd_out > sd_in + 0.5  # ...and the sd says how far the form would have gone beyond it

@@ -59,12 +59,13 @@ class Surrogate:
     def with_held_out_sd(self, sd_mm: float) -> "Surrogate":
         return replace(self, held_out_sd_mm=sd_mm)
 
-    def top_mm(self, contrast: float, size_mm: float, edge_mm: float) -> float:
+    def top_mm(self, contrast: float, size_mm: float, edge_mm: float, clamped: bool = True) -> float:
         """The lump's top below the surface (mm, never above it). size: its radius, an ellipse's minor
-        semi-axis (a rod's depth shows across it, not along it); each input held within what was fitted on
-        (a linear form extrapolates, but not without end)."""
-        contrast, size_mm, edge_mm = (self._within(key, value) for key, value in
-                                      (("contrast", contrast), ("radius_mm", size_mm), ("edge_mm", edge_mm)))
+        semi-axis (a rod's depth shows across it, not along it). Clamped: each input held within what was
+        fitted on (a linear form extrapolates, but not without end)."""
+        if clamped:
+            contrast, size_mm, edge_mm = (self._within(key, value) for key, value in
+                                          (("contrast", contrast), ("radius_mm", size_mm), ("edge_mm", edge_mm)))
         x = _features(math.log(max(contrast, 1e-6)), size_mm, edge_mm, self.tip_mm)
         return max(0.0, float(x @ np.asarray(self.coefficients)) * self.tip_mm)
 
@@ -72,20 +73,20 @@ class Surrogate:
         low, high = self.ranges.get(key, (-math.inf, math.inf))
         return min(max(value, low), high)
 
-    def estimate(self, contrast: float, radius_mm: float, edge_mm: float,
+    def estimate(self, contrast: float, size_mm: float, edge_mm: float,
                  sds: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> tuple[float, float]:
-        """(depth, sd): sds are those of log contrast, radius and edge (mm), carried through one at a time."""
-        top = self.top_mm(contrast, radius_mm, edge_mm)
-        spread = 0.0
+        """(depth, sd): sds are those of log contrast, size and edge (mm), carried through one at a time. A
+        lump outside the fitted ranges adds how far the unclamped form would have gone: extrapolation is a
+        guess, and its sd says so."""
+        top = self.top_mm(contrast, size_mm, edge_mm)
+        spread = (self.top_mm(contrast, size_mm, edge_mm, clamped=False) - top) ** 2
         for i, sd in enumerate(sds):
             if not sd or not math.isfinite(sd):
                 continue
-            point = [math.log(max(contrast, 1e-6)), radius_mm, edge_mm]
+            point = [math.log(max(contrast, 1e-6)), size_mm, edge_mm]
             point[i] += sd
-            moved = self.top_mm(math.exp(point[0]), point[1], point[2])
-            spread += (moved - top) ** 2
-        sd = math.sqrt(self.fit_sd_mm**2 + self.held_out_sd_mm**2 + spread)
-        return top, sd
+            spread += (self.top_mm(math.exp(point[0]), point[1], point[2]) - top) ** 2
+        return top, math.sqrt(self.fit_sd_mm**2 + self.held_out_sd_mm**2 + spread)
 
     def as_dict(self) -> dict:
         return {"tip_mm": self.tip_mm, "coefficients": list(self.coefficients), "fit_sd_mm": self.fit_sd_mm,
