@@ -39,7 +39,7 @@ from palpd.scan import plan, run_scan  # noqa: E402
 from palpd.tradeoff.scenes import random_scenes, soft_scenes, varied_scenes  # noqa: E402,F401  (tests use them here)
 
 HEADER = ("| scene | palpations | robot time | verdict | model (weight) | found | false | centre error | radius error "
-          "| IoU |\n|---|---|---|---|---|---|---|---|---|---|")
+          "| IoU | depth error |\n|---|---|---|---|---|---|---|---|---|---|---|")
 SUMMARY_HEADER = ("\n| scene | count right | palpations (median) | (most) | undetermined | worst centre error (mm) "
                   "| worst radius error (mm) | worst IoU |\n|---|---|---|---|---|---|---|---|")
 SCENES = Path(__file__).resolve().parent.parent / "config" / "scenes"
@@ -60,9 +60,12 @@ def row(name: str, report: dict, m: dict) -> str:
     def mm(v):
         return "–" if v is None else f"{v:.2f} mm"
     iou = "–" if m["min_iou"] is None else f"{m['min_iou']:.3f}"
+    # depth: a 3-D scene's inclusions only, with the worst error in the lump's own sds
+    sds = [p["depth_error_sd"] for p in m["per_lump"] if p.get("depth_error_sd") is not None]
+    depth = mm(m.get("max_depth_error_mm")) + (f" ({max(sds):.1f} sd)" if sds else "")
     return (f"| {name} | {report['palpations']} | {report['robot_time_s']:.1f} s | {report['verdict']} | {chosen} | "
             f"{m['lumps_found']}/{m['lumps_true']} | {m['false_lumps']} | {mm(m['max_center_error_mm'])} | "
-            f"{mm(m['max_radius_error_mm'])} | {iou} |")
+            f"{mm(m['max_radius_error_mm'])} | {iou} | {depth} |")
 
 
 def summary(name: str, runs: list[tuple[dict, dict]]) -> str:
