@@ -207,3 +207,22 @@ def test_every_shipped_3d_scene_ships_its_table_and_reads_it_without_a_build(tmp
         shipped.add(path.name)
     assert not list(tmp_path.iterdir())  # nothing was built into the cache
     assert sorted(p.name for p in T.SHIPPED_DIR.glob("*.npz")) == sorted(shipped)  # and no stale table ships
+
+
+@pytest.mark.parametrize("speed_mm_s", [20.0, 40.0, 100.0])
+def test_fast_presses_into_a_soft_3d_layer_stop_above_the_floor(speed_mm_s):
+    # A Hertzian contact is felt late (its force grows as δ^1.5), so presses on a soft 3-D layer reach the
+    # floor below the registered surface. Stopped there by the tip alone, the tip followed its setpoint (0.25
+    # mm ahead at 20 mm/s) and its own speed through the floor: an `indentation` fault at 20 and 40 mm/s.
+    from conftest import SCENES
+    from drivers.sim.scene import load_scene
+    from palpd.bench import open_simulated_bench
+    from palpd.config import Settings
+    from palpd.scan import plan, run_scan
+
+    scene = load_scene(SCENES / "paper-3d.toml")
+    settings = Settings().updated(scan={"strategy": "active"}, palpation={"speed_mm_s": speed_mm_s})
+    report = run_scan(open_simulated_bench(settings, scene), settings, plan("active", scene.tissue.size_mm, 12, 0,
+                                                                          settings))
+    assert report["faults"] == [] and report["palpations"] == 12
+    assert all(p["outcome"] == "fit" for p in report["probes"])

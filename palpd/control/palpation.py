@@ -151,8 +151,9 @@ class Palpation:
             self.segmenter.armed = True
             self.segmenter.forget()
             self.record.t_armed_s = tick.t_s
-        self._target_z -= (min(self.s.speed_mm_s, self.s.approach_speed_mm_s) if near else self.s.approach_speed_mm_s) * dt
-        if self._target_z < -(self.s.depth_mm + NO_CONTACT_MARGIN_MM) or at_floor(tick):
+        speed = min(self.s.speed_mm_s, self.s.approach_speed_mm_s) if near else self.s.approach_speed_mm_s
+        self._target_z -= speed * dt
+        if self._target_z < -(self.s.depth_mm + NO_CONTACT_MARGIN_MM) or at_floor(tick, speed):
             self._start_retract(tick, "no_contact")
         return self._setpoint()
 
@@ -162,7 +163,7 @@ class Palpation:
             self.record.rebounded = True
             self._start_retract(tick, "force")
             return self._setpoint()
-        if depth >= self.s.depth_mm or tick.normal_force_n >= self.s.max_force_n or at_floor(tick):
+        if depth >= self.s.depth_mm or tick.normal_force_n >= self.s.max_force_n or at_floor(tick, self._speed_cap()):
             reason = "force" if tick.normal_force_n >= self.s.max_force_n and depth < self.s.depth_mm else "depth"
             if self.s.hold_s > 0 and not (reason == "force" and self._shallow()):
                 self._phase, self._hold_until, self.record.stop_reason = "hold", tick.motion_t_s + self.s.hold_s, reason
@@ -186,6 +187,10 @@ class Palpation:
     def _shallow(self) -> bool:
         """The tip has gone no deeper than MIN_SLOPE_DEPTH_MM below the contact point: a press stopped here is a bound."""
         return self.record.contact_z_mm - self._lowest_in_contact_mm < MIN_SLOPE_DEPTH_MM
+
+    def _speed_cap(self) -> float:
+        """The fastest this press goes down (a varying profile swings above its mean speed)."""
+        return self.s.speed_mm_s * (1.0 + SPEED_SWING if self.s.speed_profile != "constant" else 1.0)
 
     def _indent_speed_mm_s(self) -> float:
         """At one constant speed k·xⁿ and b·xⁿ·ẋ rise alike and a fit cannot tell them apart; a varying speed can."""

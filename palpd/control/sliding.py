@@ -84,14 +84,14 @@ class SlidingPalpation:
             self.record.contact_z_mm, self._phase = tick.tip_mm[2] + lag_mm, "press"
             return self._setpoint()
         self._z -= self.s.approach_speed_mm_s * dt
-        if self._z < -(self.s.sliding_depth_mm + NO_CONTACT_MARGIN_MM) or at_floor(tick):
+        if self._z < -(self.s.sliding_depth_mm + NO_CONTACT_MARGIN_MM) or at_floor(tick, self.s.approach_speed_mm_s):
             self._lift("no_contact")
         return self._setpoint()
 
     def _press(self, tick, dt) -> Vec3:
         """Down to the set indentation at the indentation speed, then the modulation and the path begin."""
         goal = self.record.contact_z_mm - self.s.sliding_depth_mm
-        if at_floor(tick):  # the contact was read late (or the sensor lies): no deeper than the floor
+        if at_floor(tick, self.s.speed_mm_s):  # the contact was read late (or the sensor lies): not past the floor
             self._lift("depth")
             return self._setpoint()
         self._z = max(goal, self._z - self.s.speed_mm_s * dt)

@@ -6,9 +6,9 @@ too: the surface starts where the tissue was registered (z = 0 in the tissue fra
 palpation's contact point once that palpation has ended without a fault (never by the press under way: its own
 reading is the one in doubt). The floor at a point is that surface less the deepest indentation any palpation
 asks for (palpation.depth_mm, or a slide's depth and swing) less `safety.indentation_margin_mm`. A task ends
-its press when the tip comes within FLOOR_CLEARANCE_MM of the floor, as at its depth (by the tip, not the
-setpoint: pressing stiff tissue the tip lags its setpoint by the force over the controller's stiffness), and
-the tip below the floor is an `indentation` fault (category 1: the probe backs out along the normal).
+its press when the tip, or its setpoint (where the tip is going), comes within FLOOR_CLEARANCE_MM of the floor,
+as at its depth, and the tip below the floor is an `indentation` fault (category 1: the probe backs out along
+the normal).
 """
 from __future__ import annotations
 
@@ -18,6 +18,8 @@ from palpd.control.safety import Fault
 
 NEAR_MM = 15.0  # a contact point this close says where the surface is; farther, the registration does
 FLOOR_CLEARANCE_MM = 0.25  # a task stops pressing this far above the floor: the tip's overshoot stays above it
+STOPPING_S = 0.012  # a tip pressed at v comes to rest about v times this past its stopped setpoint (measured
+#                     on a soft 3-D layer: 0.38 mm from 40 mm/s), so a press at v ends that much earlier
 NO_FLOOR = -math.inf
 
 
@@ -26,9 +28,16 @@ def deepest_press_mm(palpation) -> float:
     return max(palpation.depth_mm, palpation.sliding_depth_mm + palpation.modulation_mm)
 
 
-def at_floor(tick) -> bool:
-    """The tip has come as deep as a task may take it here: the press ends, as at its depth."""
-    return tick.tip_mm[2] <= tick.floor_z_mm + FLOOR_CLEARANCE_MM
+def at_floor(tick, speed_mm_s: float = 0.0) -> bool:
+    """The tip has come as deep as a task moving it down at speed_mm_s may take it here, or its setpoint has:
+    the press ends, as at its depth. The tip goes where its setpoint is, so a press stopped by the tip alone
+    with its setpoint deeper carries the tip on: on a soft 3-D layer at 20 mm/s the setpoint led the tip by
+    0.25 mm (the force over the controller's stiffness), already past the floor, and the tip followed it
+    through (an `indentation` fault). And a tip pressed at a speed comes to rest past its stopped setpoint,
+    0.38 mm from 40 mm/s: the faster the task, the earlier it ends (the task's own speed, not the tip's
+    measured one: a tip catching up with its setpoint after contact moved at 76 mm/s, toward the setpoint)."""
+    deepest = tick.tip_mm[2] if tick.setpoint_mm is None else min(tick.tip_mm[2], tick.setpoint_mm[2])
+    return deepest <= tick.floor_z_mm + FLOOR_CLEARANCE_MM + speed_mm_s * STOPPING_S
 
 
 class SurfaceGuard:
