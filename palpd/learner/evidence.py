@@ -73,7 +73,7 @@ def prior_residuals(family: shapes.Family, theta: np.ndarray, priors: Priors) ->
     """The background's Gaussian prior and the no-lump-inside-another rule, as residuals with their Jacobian
     (for S parameter vectors at once too: theta S × size gives S of each)."""
     values = (theta[..., :BACKGROUND] - (priors.level, 0.0, 0.0)) / (LEVEL_SD, SLOPE_SD, SLOPE_SD)
-    rows = np.broadcast_to(_background_rows(family.size), theta.shape[:-1] + (3, family.size))
+    rows = _background_rows_for(family.size, theta.shape[:-1])
     parts = [(values, rows)]
     if family.k >= 2:
         parts.append(_overlaps(family, theta))
@@ -124,12 +124,14 @@ def _discs_apart(family: shapes.Family, theta: np.ndarray, first, second) -> tup
     their summed radii (0 when apart), in OVERLAP_MM, and its Jacobian (S parameter vectors at once too)."""
     first, second = np.asarray(first, dtype=int), np.asarray(second, dtype=int)
     lead, pairs = theta.shape[:-1], len(first)
-    dx, dy = theta[..., first] - theta[..., second], theta[..., first + 1] - theta[..., second + 1]
+    # one gather of both discs' [cx, cy, log R] (every fit step comes here): the same values as six
+    a, b = theta[..., _disc_columns(first)], theta[..., _disc_columns(second)]
+    dx, dy = a[..., 0:pairs] - b[..., 0:pairs], a[..., pairs:2 * pairs] - b[..., pairs:2 * pairs]
     d = np.hypot(dx, dy) + 1e-9
-    ra, rb = np.exp(theta[..., first + 2]), np.exp(theta[..., second + 2])
+    ra, rb = np.exp(a[..., 2 * pairs:]), np.exp(b[..., 2 * pairs:])
     excess = 0.5 * (ra + rb) - d
     inside = excess > 0
-    if not inside.any():  # discs apart, as nearly always: nothing to push (every fit step comes here)
+    if not inside.any():  # discs apart, as nearly always: nothing to push
         return np.zeros(lead + (pairs,)), np.zeros(lead + (pairs, family.size))
     rows = np.zeros(lead + (pairs, family.size))
     pair = np.arange(pairs)
@@ -147,6 +149,17 @@ def _background_rows(size: int) -> np.ndarray:
     rows[[0, 1, 2], [0, 1, 2]] = 1.0 / np.array([LEVEL_SD, SLOPE_SD, SLOPE_SD])
     rows.flags.writeable = False
     return rows
+
+
+def _disc_columns(starts: np.ndarray) -> np.ndarray:
+    """The columns [cx of each disc, then cy of each, then log R of each] of discs at those offsets."""
+    return np.concatenate([starts, starts + 1, starts + 2])
+
+
+@functools.lru_cache(maxsize=256)
+def _background_rows_for(size: int, lead: tuple) -> np.ndarray:
+    """_background_rows broadcast to `lead` parameter vectors (read-only): made once per shape, not per fit step."""
+    return np.broadcast_to(_background_rows(size), lead + (3, size))
 
 
 @functools.lru_cache(maxsize=None)

@@ -164,7 +164,7 @@ def _log_h(log_u: np.ndarray, tail: np.ndarray, derivatives: bool = True):
     for all columns at once (lumps from many starts are evaluated together: a loop over them would cost
     a dozen numpy calls each)."""
     u = np.exp(log_u)
-    if np.any(tail < 0.0):
+    if (tail < 0.0).any():  # the method, not np.any: its wrapper costs more than the test here
         return _log_h_branches(log_u, u, tail, derivatives)
     hill = tail < 1e-4
     if hill.all():
@@ -256,7 +256,7 @@ def evaluate_many(family: Family, thetas: np.ndarray, xy: np.ndarray, jacobian: 
         top, m = None, heights[:, :, 0]
     else:
         top = np.argmax(heights, axis=2)  # n × S: the lump felt at each point (the stiffest)
-        m = np.take_along_axis(heights, top[:, :, None], axis=2)[:, :, 0]
+        m = heights[np.arange(n)[:, None], np.arange(count)[None, :], top]  # take_along_axis, without its wrapper
     f = base + np.log1p(m.T)
     if not jacobian:
         return f, None
