@@ -147,15 +147,16 @@ def _heights(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, jacobian: bool):
     t, dt_dlog_u, dt_dtail = _log_h(log_u, tail, jacobian)
     t = np.minimum(np.maximum(t, -700.0), 700.0)
     p = 1.0 / (1.0 + np.exp(t))
+    height = a * p
     if not jacobian:
-        return a * p, None
+        return height, None
     dh_dt = -a * p * (1.0 - p)
     jac = np.empty(lr2.shape + (lumps.shape[1],))
     jac[:, :, :-3] = (dh_dt * dt_dlog_u * 0.5 * s)[:, :, None] * d_lr2
     jac[:, :, -3] = dh_dt * dt_dtail
     jac[:, :, -2] = dh_dt * dt_dlog_u * log_u
-    jac[:, :, -1] = a * p
-    return a * p, jac
+    jac[:, :, -1] = height
+    return height, jac
 
 
 def _log_h(log_u: np.ndarray, tail: np.ndarray, derivatives: bool = True):
