@@ -188,7 +188,7 @@ def _log_h_branches(log_u: np.ndarray, u: np.ndarray, tail: np.ndarray, derivati
     """_log_h where some lumps end at a finite distance (λ < 0): each column from its own branch."""
     compact = tail < 0.0
     t, dt_dlog_u, dt_dtail = _log_h(log_u, np.where(compact, 0.0, tail), derivatives)
-    c = np.broadcast_to(-0.5 * np.minimum(tail, 0.0), u.shape)
+    c = -0.5 * np.minimum(tail, 0.0)  # one per column: broadcast by the arithmetic below (np.broadcast_to's wrapper costs)
     cu = c * u
     inside = cu < 1.0 - 1e-12
     rest = np.where(inside, 1.0 - cu, 1.0)
