@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 OUT := out
 
-.PHONY: run test reproduce figures docs clean
+.PHONY: run test reproduce figures tables docs clean
 
 # setuptools notes every editable install of a mapped layout (config/ ships as palpd.share) at length:
 # informational only, so hidden. pip at -qq says only errors: a first `make run` printed its warnings about
@@ -17,8 +17,8 @@ $(BIN)/palpd: pyproject.toml
 
 run: $(BIN)/palpd
 	mkdir -p $(OUT)
-	$(BIN)/palpd scan --scene config/scenes/paper.toml --strategy active \
-		--report $(OUT)/paper-report.json --plot $(OUT)/paper-map.png
+	$(BIN)/palpd scan --scene config/scenes/paper-3d.toml --strategy active \
+		--report $(OUT)/paper-3d-report.json --plot $(OUT)/paper-3d-map.png
 
 # Three workers on two cores: the suite is CPU-bound, and beside another busy process (a CPU hog) a third
 # worker takes 3/4 of the cores' share instead of 2/3 (five runs beside a hog: 155-158 s with two, 145-153 s
@@ -31,6 +31,10 @@ test: $(BIN)/palpd
 
 reproduce: $(BIN)/palpd
 	$(BIN)/python scripts/reproduce.py
+
+# The shipped 3-D scenes' force tables (drivers/sim/mechanics/tables/), rebuilt where a scene or the recipe changed.
+tables: $(BIN)/palpd
+	$(BIN)/python scripts/build_force_tables.py
 
 # The tables and pictures the README and the manual include, measured here and stamped with the commit.
 figures: $(BIN)/palpd

@@ -20,7 +20,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 FIGURES = ROOT / "docs" / "figures"
 WRITTEN_HERE = ("docs/figures/", "README.md")  # rewriting these does not make the measured code another one
-SCENES = ("paper", "two-lumps", "no-lump", "elongated-lump", "deep-lump")
+SCENES = ("paper", "two-lumps", "no-lump", "elongated-lump", "deep-lump", "paper-3d", "sphere-3d")
 
 sys.path.insert(0, str(ROOT / "scripts"))
 import active_scenes  # noqa: E402  the same scans and rows as its tables
