@@ -288,13 +288,6 @@ class TableField:
         self._inner_depths = self._depths[1:-1]  # the first k with depth < these[k] is the interval
         self.table = table
 
-    def _interval(self, depth_mm: float) -> int:
-        d = self._depths
-        for k in range(len(d) - 2):
-            if depth_mm < d[k + 1]:
-                return k
-        return len(d) - 2
-
     def elastic_n(self, x_mm: float, y_mm: float, depth_mm: float) -> float:
         """Twice per servo tick: written out, the same sums as a loop over the four corners."""
         if depth_mm <= 0.0:
