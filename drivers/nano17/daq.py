@@ -84,9 +84,8 @@ class DaqSensor(ForceSensor):
     def _saturated(self, gauges, load) -> bool:
         """A gauge near the DAQ's rail, or a load beyond the calibrated range (plain loops: every tick)."""
         rail = RAIL_FRACTION * self.source.rail_v
-        for v in gauges:
-            if v >= rail or v <= -rail:
-                return True
+        if max(gauges) >= rail or min(gauges) <= -rail:  # (finite here: a NaN load is flagged invalid first)
+            return True
         for value, limit in zip(load, self._ranges):
             if value > limit or value < -limit:
                 return True

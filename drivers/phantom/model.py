@@ -89,16 +89,21 @@ def tip_inertia_force_n(q: Vec3, accel_m_s2: Vec3) -> Vec3:
     return _solve3(tuple(zip(*j)), tau)  # type: ignore[arg-type]
 
 
+def _det3(a00, a01, a02, a10, a11, a12, a20, a21, a22) -> float:
+    return a00 * (a11 * a22 - a12 * a21) - a01 * (a10 * a22 - a12 * a20) + a02 * (a10 * a21 - a11 * a20)
+
+
 def _solve3(m, v: Vec3) -> Vec3:
-    """x with m x = v (Cramer's rule; a singular m, at the workspace's edge, gives no force)."""
-    def det(a):
-        return (a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
-                + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]))
-    d = det(m)
+    """x with m x = v (Cramer's rule; a singular m, at the workspace's edge, gives no force). Written out: the
+    sensor-health check solves two of these every few servo ticks, and nested lists cost more than the sums."""
+    (m00, m01, m02), (m10, m11, m12), (m20, m21, m22) = m
+    v0, v1, v2 = v
+    d = _det3(m00, m01, m02, m10, m11, m12, m20, m21, m22)
     if abs(d) < 1e-12:
         return (0.0, 0.0, 0.0)
-    return tuple(det([[v[r] if c == k else m[r][c] for c in range(3)] for r in range(3)]) / d
-                 for k in range(3))  # type: ignore[return-value]
+    return (_det3(v0, m01, m02, v1, m11, m12, v2, m21, m22) / d,
+            _det3(m00, v0, m02, m10, v1, m12, m20, v2, m22) / d,
+            _det3(m00, m01, v0, m10, m11, v1, m20, m21, v2) / d)
 
 
 def tip_velocity(q: Vec3, qdot: Vec3) -> Vec3:

@@ -13,6 +13,7 @@ JOINT_INERTIA_KG_M2 = model.JOINT_INERTIA_KG_M2
 VISCOUS_NM_S = (2.0e-3, 2.0e-3, 1.5e-3)
 COULOMB_NM = (2.0e-3, 2.0e-3, 2.0e-3)
 COULOMB_SMOOTHING_RAD_S = 0.01  # keeps Coulomb friction continuous through zero speed
+_JOINTS = tuple(zip(range(3), VISCOUS_NM_S, COULOMB_NM, JOINT_INERTIA_KG_M2, model.JOINT_LIMITS_RAD))
 
 
 class SimArm:
@@ -23,13 +24,13 @@ class SimArm:
     def step(self, dt_s: float, tau_motor: model.Vec3, tau_external: model.Vec3) -> None:
         """Semi-implicit Euler: velocities first, then positions with the new velocities."""
         gravity = model.gravity_torques(self.q)  # type: ignore[arg-type]
-        for j in range(3):
-            speed = self.qd[j]
-            friction = VISCOUS_NM_S[j] * speed + COULOMB_NM[j] * math.tanh(speed / COULOMB_SMOOTHING_RAD_S)
+        q, qd, tanh = self.q, self.qd, math.tanh
+        for j, viscous, coulomb, inertia, (low, high) in _JOINTS:  # twice per servo tick: locals, no indexing
+            speed = qd[j]
+            friction = viscous * speed + coulomb * tanh(speed / COULOMB_SMOOTHING_RAD_S)
             torque = tau_motor[j] + tau_external[j] + gravity[j] - friction
-            self.qd[j] = speed + torque / JOINT_INERTIA_KG_M2[j] * dt_s
-            self.q[j] += self.qd[j] * dt_s
-            low, high = model.JOINT_LIMITS_RAD[j]
-            if not low <= self.q[j] <= high:  # hard stop: the joint halts against it
-                self.q[j] = min(max(self.q[j], low), high)
-                self.qd[j] = 0.0
+            qd[j] = speed = speed + torque / inertia * dt_s
+            q[j] = position = q[j] + speed * dt_s
+            if not low <= position <= high:  # hard stop: the joint halts against it
+                q[j] = min(max(position, low), high)
+                qd[j] = 0.0

@@ -115,6 +115,8 @@ class SimFaults:
         return bits | STATUS_AMPLIFIER_FAULT if self.amplifier_fault else bits
 
     def extra_normal_force_n(self, x_mm: float, y_mm: float, indentation_mm: float) -> float:
+        if not self.rigid_objects:  # as nearly always: no generator to build twice per servo tick
+            return 0.0
         return sum(obj.force_n(x_mm, y_mm, indentation_mm) for obj in self.rigid_objects)
 
 

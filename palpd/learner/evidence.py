@@ -73,7 +73,7 @@ def prior_residuals(family: shapes.Family, theta: np.ndarray, priors: Priors) ->
     """The background's Gaussian prior and the no-lump-inside-another rule, as residuals with their Jacobian
     (for S parameter vectors at once too: theta S × size gives S of each)."""
     values = (theta[..., :BACKGROUND] - (priors.level, 0.0, 0.0)) / (LEVEL_SD, SLOPE_SD, SLOPE_SD)
-    rows = np.broadcast_to(_background_rows(family.size), theta.shape[:-1] + (3, family.size))
+    rows = _background_rows_for(family.size, theta.shape[:-1])
     parts = [(values, rows)]
     if family.k >= 2:
         parts.append(_overlaps(family, theta))
@@ -91,7 +91,7 @@ def _soft_beside_lumps(family: shapes.Family, theta: np.ndarray) -> tuple[np.nda
     beside one (a stiff ring was one disc with a soft region in its middle: `lumps`, where no model on offer
     draws a ring and the scan is to say so)."""
     soft = family.soft_slice.start
-    return _discs_apart(family, theta, [family.lump_slice(j).start for j in range(family.k)], [soft] * family.k)
+    return _discs_apart(family, theta, tuple(family.lump_slice(j).start for j in range(family.k)), (soft,) * family.k)
 
 
 def _soft_off_tissue(family: shapes.Family, theta: np.ndarray, priors: Priors) -> tuple[np.ndarray, np.ndarray]:
@@ -114,22 +114,31 @@ def _soft_off_tissue(family: shapes.Family, theta: np.ndarray, priors: Priors) -
 
 def _overlaps(family: shapes.Family, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """How far each pair of lumps' centres sit inside half their summed radii (0 when apart), in OVERLAP_MM."""
-    j, m = _pairs(family.k)
-    starts = np.array([family.lump_slice(i).start for i in range(family.k)], dtype=int)
-    return _discs_apart(family, theta, starts[j], starts[m])
+    return _discs_apart(family, theta, *_overlap_starts(family.k, family.per_lump))
 
 
-def _discs_apart(family: shapes.Family, theta: np.ndarray, first, second) -> tuple[np.ndarray, np.ndarray]:
-    """For each pair of discs (the offsets in θ of their [cx, cy, log R]), how far their centres sit inside half
-    their summed radii (0 when apart), in OVERLAP_MM, and its Jacobian (S parameter vectors at once too)."""
-    first, second = np.asarray(first, dtype=int), np.asarray(second, dtype=int)
+@functools.lru_cache(maxsize=None)
+def _overlap_starts(k: int, per_lump: int) -> tuple[tuple, tuple]:
+    """The offsets in θ of each pair's two lumps (j < m), made once per layout: every fit step asks."""
+    j, m = _pairs(k)
+    starts = [BACKGROUND + i * per_lump for i in range(k)]
+    return tuple(starts[i] for i in j.tolist()), tuple(starts[i] for i in m.tolist())
+
+
+def _discs_apart(family: shapes.Family, theta: np.ndarray, first: tuple, second: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """For each pair of discs (the offsets in θ of their [cx, cy, log R], as tuples), how far their centres sit
+    inside half their summed radii (0 when apart), in OVERLAP_MM, and its Jacobian (S parameter vectors at once
+    too)."""
+    first, second, first_columns, second_columns = _disc_columns(first, second)
     lead, pairs = theta.shape[:-1], len(first)
-    dx, dy = theta[..., first] - theta[..., second], theta[..., first + 1] - theta[..., second + 1]
+    # one gather of both discs' [cx, cy, log R] (every fit step comes here): the same values as six
+    a, b = theta[..., first_columns], theta[..., second_columns]
+    dx, dy = a[..., 0:pairs] - b[..., 0:pairs], a[..., pairs:2 * pairs] - b[..., pairs:2 * pairs]
     d = np.hypot(dx, dy) + 1e-9
-    ra, rb = np.exp(theta[..., first + 2]), np.exp(theta[..., second + 2])
+    ra, rb = np.exp(a[..., 2 * pairs:]), np.exp(b[..., 2 * pairs:])
     excess = 0.5 * (ra + rb) - d
     inside = excess > 0
-    if not inside.any():  # discs apart, as nearly always: nothing to push (every fit step comes here)
+    if not inside.any():  # discs apart, as nearly always: nothing to push
         return np.zeros(lead + (pairs,)), np.zeros(lead + (pairs, family.size))
     rows = np.zeros(lead + (pairs, family.size))
     pair = np.arange(pairs)
@@ -147,6 +156,26 @@ def _background_rows(size: int) -> np.ndarray:
     rows[[0, 1, 2], [0, 1, 2]] = 1.0 / np.array([LEVEL_SD, SLOPE_SD, SLOPE_SD])
     rows.flags.writeable = False
     return rows
+
+
+@functools.lru_cache(maxsize=None)
+def _disc_columns(first: tuple, second: tuple) -> tuple[np.ndarray, ...]:
+    """The offsets as arrays, and the columns [cx of each disc, then cy of each, then log R of each] of the first
+    discs and of the second: made once per layout (read-only)."""
+    out = []
+    for starts in (first, second):
+        starts = np.array(starts, dtype=int)
+        out.append(starts)
+    out += [np.concatenate([s, s + 1, s + 2]) for s in out]
+    for array in out:
+        array.flags.writeable = False
+    return tuple(out)
+
+
+@functools.lru_cache(maxsize=256)
+def _background_rows_for(size: int, lead: tuple) -> np.ndarray:
+    """_background_rows broadcast to `lead` parameter vectors (read-only): made once per shape, not per fit step."""
+    return np.broadcast_to(_background_rows(size), lead + (3, size))
 
 
 @functools.lru_cache(maxsize=None)

@@ -147,15 +147,16 @@ def _heights(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, jacobian: bool):
     t, dt_dlog_u, dt_dtail = _log_h(log_u, tail, jacobian)
     t = np.minimum(np.maximum(t, -700.0), 700.0)
     p = 1.0 / (1.0 + np.exp(t))
+    height = a * p
     if not jacobian:
-        return a * p, None
+        return height, None
     dh_dt = -a * p * (1.0 - p)
     jac = np.empty(lr2.shape + (lumps.shape[1],))
     jac[:, :, :-3] = (dh_dt * dt_dlog_u * 0.5 * s)[:, :, None] * d_lr2
     jac[:, :, -3] = dh_dt * dt_dtail
     jac[:, :, -2] = dh_dt * dt_dlog_u * log_u
-    jac[:, :, -1] = a * p
-    return a * p, jac
+    jac[:, :, -1] = height
+    return height, jac
 
 
 def _log_h(log_u: np.ndarray, tail: np.ndarray, derivatives: bool = True):
@@ -164,7 +165,7 @@ def _log_h(log_u: np.ndarray, tail: np.ndarray, derivatives: bool = True):
     for all columns at once (lumps from many starts are evaluated together: a loop over them would cost
     a dozen numpy calls each)."""
     u = np.exp(log_u)
-    if np.any(tail < 0.0):
+    if (tail < 0.0).any():  # the method, not np.any: its wrapper costs more than the test here
         return _log_h_branches(log_u, u, tail, derivatives)
     hill = tail < 1e-4
     if hill.all():
@@ -187,7 +188,7 @@ def _log_h_branches(log_u: np.ndarray, u: np.ndarray, tail: np.ndarray, derivati
     """_log_h where some lumps end at a finite distance (λ < 0): each column from its own branch."""
     compact = tail < 0.0
     t, dt_dlog_u, dt_dtail = _log_h(log_u, np.where(compact, 0.0, tail), derivatives)
-    c = np.broadcast_to(-0.5 * np.minimum(tail, 0.0), u.shape)
+    c = -0.5 * np.minimum(tail, 0.0)  # one per column: broadcast by the arithmetic below (np.broadcast_to's wrapper costs)
     cu = c * u
     inside = cu < 1.0 - 1e-12
     rest = np.where(inside, 1.0 - cu, 1.0)
@@ -256,7 +257,7 @@ def evaluate_many(family: Family, thetas: np.ndarray, xy: np.ndarray, jacobian: 
         top, m = None, heights[:, :, 0]
     else:
         top = np.argmax(heights, axis=2)  # n × S: the lump felt at each point (the stiffest)
-        m = np.take_along_axis(heights, top[:, :, None], axis=2)[:, :, 0]
+        m = heights[np.arange(n)[:, None], np.arange(count)[None, :], top]  # take_along_axis, without its wrapper
     f = base + np.log1p(m.T)
     if not jacobian:
         return f, None

@@ -38,6 +38,7 @@ def levenberg_marquardt_many(fun, starts: np.ndarray, lo: np.ndarray, hi: np.nda
     damping = np.full(count, 1e-3)
     active = np.ones(count, dtype=bool)
     hopeless = None if give_up is None else _Hopeless(count, give_up)
+    index = np.arange(x.shape[1])  # the diagonal's (each step's numpy calls are its cost: none made twice)
     for iteration in range(max_iter):
         if hopeless is not None:
             hopeless.judge(iteration, cost, active)
@@ -47,22 +48,22 @@ def levenberg_marquardt_many(fun, starts: np.ndarray, lo: np.ndarray, hi: np.nda
         j, res = jac[live], r[live]
         jt = j.transpose(0, 2, 1)
         a, g = jt @ j, (jt @ res[:, :, None])[:, :, 0]
-        diagonal = np.diagonal(a, axis1=1, axis2=2)
+        diagonal = a.diagonal(axis1=1, axis2=2)
         scale = np.maximum(diagonal, 1e-12 * np.maximum(diagonal.max(axis=1), 1e-300)[:, None])
         damped = a.copy()
-        index = np.arange(a.shape[1])
         damped[:, index, index] += damping[live, None] * scale
         step, solved = _solve_each(damped, -g)
-        damping[live[~solved]] *= 10.0
-        live, step = live[solved], step[solved]
-        if live.size == 0:
-            continue
-        trial = np.clip(x[live] + step, _of(lo, live), _of(hi, live))
+        if solved is not None:  # some system was singular: more damping for those, the rest step
+            damping[live[~solved]] *= 10.0
+            live, step = live[solved], step[solved]
+            if live.size == 0:
+                continue
+        trial = np.minimum(np.maximum(x[live] + step, _of(lo, live)), _of(hi, live))  # np.clip, without its wrapper
         r_new, jac_new = fun(trial)
         calls[live] += 1
         new_cost = 0.5 * np.einsum("sm,sm->s", r_new, r_new)
         better = np.isfinite(new_cost) & (new_cost < cost[live])
-        moved = np.max(np.abs(trial - x[live]), axis=1)
+        moved = np.abs(trial - x[live]).max(axis=1)
         done = better & ((cost[live] - new_cost <= tolerance) | (moved < 1e-9))
         took = live[better]
         x[took], r[took], jac[took], cost[took] = trial[better], r_new[better], jac_new[better], new_cost[better]
@@ -105,10 +106,11 @@ def _of(box: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return box[rows] if box.ndim == 2 else box
 
 
-def _solve_each(matrices: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each system's solution and whether it had one (a singular one gets more damping, as for one start)."""
+def _solve_each(matrices: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """Each system's solution and whether it had one (a singular one gets more damping, as for one start);
+    None for "all had one", the common case, which then costs no mask."""
     try:
-        return np.linalg.solve(matrices, rhs[:, :, None])[:, :, 0], np.ones(len(rhs), dtype=bool)
+        return np.linalg.solve(matrices, rhs[:, :, None])[:, :, 0], None
     except np.linalg.LinAlgError:
         out, solved = np.zeros_like(rhs), np.ones(len(rhs), dtype=bool)
         for i in range(len(rhs)):

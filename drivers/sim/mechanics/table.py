@@ -284,29 +284,40 @@ class TableField:
         self._exponents = (np.diff(log_f, axis=2) / np.diff(log_d)).tolist()
         self._forces = table.forces_n.tolist()
         self._damping = damping_n_s_per_mm
+        self._nx, self._ny = len(self._xs) - 1.000001, len(self._ys) - 1.000001
+        self._inner_depths = self._depths[1:-1]  # the first k with depth < these[k] is the interval
         self.table = table
 
-    def _interval(self, depth_mm: float) -> int:
-        d = self._depths
-        for k in range(len(d) - 2):
-            if depth_mm < d[k + 1]:
-                return k
-        return len(d) - 2
-
     def elastic_n(self, x_mm: float, y_mm: float, depth_mm: float) -> float:
+        """Twice per servo tick: written out, the same sums as a loop over the four corners."""
         if depth_mm <= 0.0:
             return 0.0
-        fx = min(max((x_mm - self._x0) / self._dx, 0.0), len(self._xs) - 1.000001)
-        fy = min(max((y_mm - self._y0) / self._dy, 0.0), len(self._ys) - 1.000001)
+        fx = min(max((x_mm - self._x0) / self._dx, 0.0), self._nx)
+        fy = min(max((y_mm - self._y0) / self._dy, 0.0), self._ny)
         i, j = int(fx), int(fy)
         ax, ay = fx - i, fy - j
-        k = self._interval(depth_mm)
+        k = 0
+        for bound in self._inner_depths:
+            if depth_mm < bound:
+                break
+            k += 1
         scale = math.log(depth_mm / self._depths[k])
+        exp = math.exp
+        row, row1 = self._forces[i], self._forces[i + 1]
+        erow, erow1 = self._exponents[i], self._exponents[i + 1]
         total = 0.0
-        for ii, jj, w in ((i, j, (1 - ax) * (1 - ay)), (i + 1, j, ax * (1 - ay)), (i, j + 1, (1 - ax) * ay),
-                          (i + 1, j + 1, ax * ay)):
-            if w:
-                total += w * self._forces[ii][jj][k] * math.exp(self._exponents[ii][jj][k] * scale)
+        w = (1 - ax) * (1 - ay)
+        if w:
+            total += w * row[j][k] * exp(erow[j][k] * scale)
+        w = ax * (1 - ay)
+        if w:
+            total += w * row1[j][k] * exp(erow1[j][k] * scale)
+        w = (1 - ax) * ay
+        if w:
+            total += w * row[j + 1][k] * exp(erow[j + 1][k] * scale)
+        w = ax * ay
+        if w:
+            total += w * row1[j + 1][k] * exp(erow1[j + 1][k] * scale)
         return total
 
     def force_n(self, x_mm: float, y_mm: float, depth_mm: float, rate_mm_s: float = 0.0) -> float:
