@@ -117,7 +117,7 @@ def _with_margin(width_mm: float, element_mm: float) -> np.ndarray:
     return np.concatenate([-outer[::-1], inner, outer])
 
 
-MAX_UNKNOWNS = 60_000  # paper-3d's 60 x 60 x 20 mm (with its margin) has 50 403 and builds in 1-4 minutes on 2 cores
+MAX_UNKNOWNS = 60_000  # paper-3d's 60 x 60 x 20 mm (with its margin) has 50 193 and builds in 1.5-5 minutes on 2 cores
 
 
 def layer_compliance(scene, element_mm: float = ELEMENT_MM, surface_element_mm: float = SURFACE_ELEMENT_MM):
