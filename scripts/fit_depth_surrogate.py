@@ -50,10 +50,7 @@ def felt_profile(thickness_mm: float, body: dict | None, reach_mm: float, offset
     near = ((xy[:, 0] >= xs[0] - TIP_MM - 1e-9) & (xy[:, 0] <= xs[-1] + TIP_MM + 1e-9)
             & (np.abs(xy[:, 1]) <= ys[-1] + TIP_MM + 1e-9))
     kept = np.flatnonzero(near)
-    rows = block._free_index[block.surface_dofs[kept]]
-    load = np.zeros((len(block.free), len(kept)))
-    load[rows, np.arange(len(kept))] = 1.0
-    c = block._lu.solve(load)[rows]
+    c = block.columns(kept)[kept]
     c = (c + c.T) / 2.0
     forces = np.array([[T.force_at(xy[kept], c, x, y, TIP_MM, [depth.REFERENCE_DEPTH_MM]) for y in ys] for x in xs])
     smooth = T._smoothed(forces)[1:-1, 1, 0]  # the table's 1/4 1/2 1/4, its ends dropped (mirrored there)

@@ -144,15 +144,12 @@ def surface_matrix(block, reach_mm: tuple[float, float], progress: bool = False)
     xy = block.surface_xy
     kept = np.flatnonzero((np.abs(xy[:, 0]) <= reach_mm[0] + 1e-9) & (np.abs(xy[:, 1]) <= reach_mm[1] + 1e-9))
     n = len(kept)
-    free_rows = block._free_index[block.surface_dofs[kept]]
     matrix = np.empty((n, n))
     starts = range(0, n, BLOCK_COLUMNS)
     for start in tqdm(starts, desc="3-D tissue: surface compliance", unit="block", leave=False,
                       disable=None if progress else True):  # None: only on a terminal
         stop = min(n, start + BLOCK_COLUMNS)
-        load = np.zeros((len(block.free), stop - start))
-        load[free_rows[start:stop], np.arange(stop - start)] = 1.0
-        matrix[:, start:stop] = block._lu.solve(load)[free_rows]  # 1 N up lifts by C (so 1 N down sinks by C)
+        matrix[:, start:stop] = block.columns(kept[start:stop])[kept]
     return xy[kept], (matrix + matrix.T) / 2.0
 
 
