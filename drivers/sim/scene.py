@@ -110,8 +110,8 @@ class Scene(_Strict):
 
         if self.probe.tip_radius_mm < MIN_TIP_RADIUS_MM:
             raise ValueError(f"probe.tip_radius_mm {self.probe.tip_radius_mm:g} is below the {MIN_TIP_RADIUS_MM:g} mm "
-                             "the 3-D simulator resolves (its surface nodes are that far apart: a smaller tip would "
-                             "press one node, far stiffer than the tip)")
+                             "the 3-D simulator resolves (its surface nodes are 2 mm apart: a smaller tip's "
+                             "contact is not resolved until it is sunk near its equator)")
         return self
 
     @model_validator(mode="after")

@@ -25,10 +25,12 @@ log = logging.getLogger(__name__)
 FORMAT_VERSION = 5  # bump when the table's meaning or the mesh recipe changes: old cache files are ignored
 DEPTHS_MM = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0)
 ELEMENT_MM = 4.0  # lateral element edge: P2 nodes, and so the table's grid, every 2 mm
-# The smallest tip the table resolves: its surface nodes' spacing. A smaller tip presses one node, a point load
-# whose compliance is the mesh's, not the tip's: on a 25 mm layer a 1 mm tip read 61 % over Hertz at 1 mm, a
-# 0.5 mm one 131 % (2.5 mm: 1 %; scenes refuse less, drivers.sim.scene)
-MIN_TIP_RADIUS_MM = ELEMENT_MM / 2
+# The smallest tip the table resolves. Until the contact radius √(Rδ) spans the surface nodes' spacing the tip
+# presses one node (_hertz_onset puts Hertz's δ^1.5 there, up to the first tabulated depth past s²/R), and that
+# onset holds only while the tip is sunk well short of its equator: for R = 2 mm it ran to δ = 2 mm = R and met
+# the mesh's flatter law there in a kink (exponent 1.5, then 0.9). From 2.5 mm (onset to 2 mm, 0.8 R) the two
+# meet smoothly (within 2 % of Hertz at 0.5-3 mm on a 25 mm layer). A tip below 1 mm read 61-131 % over Hertz.
+MIN_TIP_RADIUS_MM = 2.5
 SURFACE_ELEMENT_MM = 2.0  # depth of the first element layer under the surface, growing x1.5 downward
 MARGIN_MM = 10.0  # the layer meshed this far past each side of the palpable rectangle (layer_mesh)
 MARGIN_GROWTH = 1.5  # the margin's elements growing outward by this factor
