@@ -135,3 +135,16 @@ def test_any_3d_layer_palpated_through_the_simulator_stays_safe_and_reads_honest
     bench, probe = pressed(scene)
     deepest_mm = SETTINGS.palpation.depth_mm + SETTINGS.safety.indentation_margin_mm
     check_safe_and_honest(bench, probe, scene, deep_enough=thickness_mm > deepest_mm + 2.0)
+
+
+def test_the_3d_extremes_bench_scenes_in_the_docs_load_and_fit_their_layers():
+    # docs/explanation/extremes.md scans these with `palpd bench extremes --scenes ...`: they must stay valid
+    from pathlib import Path
+
+    from drivers.sim.scene import load_scene, truth_lumps
+
+    paths = sorted((Path(__file__).parent.parent / "docs" / "examples" / "extremes-3d").glob("*.toml"))
+    assert [p.stem for p in paths] == ["noisy-3d", "soft-3d", "stiff-3d", "thin-3d"]
+    for path in paths:
+        scene = load_scene(path)
+        assert scene.tissue.is_3d and len(truth_lumps(scene)) == 1, path
