@@ -238,13 +238,17 @@ class Palpation:
                       detected_at=len(samples) - 1, force_lead_s=self.segmenter.force_lead_s)
         return seg
 
-    def lifted(self, ended: "Palpation") -> None:
-        """This palpation, handed back settled, has ended as `ended` (its copy from the servo process): what
-        the lift added to the record. None of it is read by the fit (probe.judge reads lowest_z_mm only of a
-        no_contact record, which is never handed back early)."""
-        rec, end = self.record, ended.record
-        rec.t_end_s, rec.lowest_z_mm, rec.dropped_samples = end.t_end_s, end.lowest_z_mm, ended.segmenter.dropped
-        self.done = ended.done
+    def lift_end(self) -> tuple:
+        """What the lift after `settled` adds to the record (and whether it ended): all the servo process
+        sends back at the end of a palpation it sent back settled, not the whole task again."""
+        return self.record.t_end_s, self.record.lowest_z_mm, self.segmenter.dropped, self.done
+
+    def lifted(self, end: tuple) -> None:
+        """This palpation, handed back settled, has ended (`lift_end` of its copy in the servo process). None
+        of what the lift adds is read by the fit (probe.judge reads lowest_z_mm only of a no_contact record,
+        which is never handed back early)."""
+        rec = self.record
+        rec.t_end_s, rec.lowest_z_mm, rec.dropped_samples, self.done = end
 
     def finish(self, refit_onset: bool = True) -> PalpationRecord:
         """The record, its contact point found again from the whole trace (host side, after the run)."""

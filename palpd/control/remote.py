@@ -225,7 +225,7 @@ class RemoteServo:
         kind, payload, state = self._receive(None)
         if state is not None:
             self._take(state)
-        task.lifted(payload["task"])
+        task.lifted(payload["lift_end"])
         self._unsettled = payload["fault"]
 
     def header(self) -> dict:
