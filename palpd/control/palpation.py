@@ -132,7 +132,8 @@ class Palpation:
         found = self.segmenter.push(tick.t_s, tick.tip_mm, tick.normal_force_n, tick.sample.t_s)
         if found is not None and not self.settled and (self._segment is None
                                                        or found.peak_force_n > self._segment.peak_force_n):
-            self._segment = found  # a brush before the press is not the palpation
+            # a brush before the press is not the palpation, nor a touch in the lift once the record is out
+            self._segment = found
         return getattr(self, "_" + self._phase)(tick, dt)
 
     def _above(self, tick, dt) -> Vec3:

@@ -202,18 +202,16 @@ class RemoteServo:
         end (`task.lifted` takes what it added) and raises a fault that came after; so does every later
         request, before its own. A task that ends or faults before it settles returns as from run()."""
         self.settle()
-        done = self.call("run", task, timeout_s, True)
+        done = self.call("run", task, timeout_s, True, begins=task)
         task.__dict__.update(done["task"].__dict__)
-        if done.get("settled"):
-            self._begun = task
-        elif done["fault"] is not None:
+        if not done.get("settled") and done["fault"] is not None:
             raise ScanFault(done["fault"])
 
     def settle(self) -> None:
         """The task begun last has ended; raises ScanFault if safety stopped it after it settled."""
         with self._lock:
             self._end_begun()
-        fault, self._unsettled = self._unsettled, None
+            fault, self._unsettled = self._unsettled, None
         if fault is not None:
             raise ScanFault(fault)
 
@@ -269,12 +267,16 @@ class RemoteServo:
             self._beat, self._beat_seen_at = beat, time.monotonic()
         return time.monotonic() - self._beat_seen_at
 
-    def call(self, command: str, *args, wait_s: float | None = None):
+    def call(self, command: str, *args, wait_s: float | None = None, begins=None):
+        """One request and its reply. `begins`: the task of a run sent back settled (begin), whose end is
+        then the next reply on the pipe: taken under the same lock, so no other thread's request reads it."""
         with self._lock:
             self._end_begun()
             if command != "hello":
                 self._send((command, *args))
             kind, payload, state = self._receive(wait_s)
+            if begins is not None and kind != "error" and payload.get("settled"):
+                self._begun = begins
         if state is not None:
             self._take(state)
         if kind == "error":
