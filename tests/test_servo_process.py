@@ -199,6 +199,7 @@ def test_a_fault_while_a_begun_palpation_lifts_is_raised_by_settle_and_latched(b
     assert palpation.finish().contact  # the record handed back stands
     servo.settle()  # raised once
     servo.reset()
+    servo.settle()
     servo.start()
     servo.run(MoveTo((0.0, 0.0, 6.0), 40.0, 2000.0))
     servo.stop()
@@ -216,3 +217,14 @@ def test_in_process_a_fault_after_a_begun_palpation_settled_is_raised_by_settle_
     with pytest.raises(ScanFault, match="estop"):
         servo.settle()
     servo.settle()
+    servo.tick_hook = None
+    servo.reset()
+    servo.start()
+    again = _slow_lift_palpation()
+    servo.tick_hook = lambda tick: again.settled and servo.request_estop()
+    servo.begin(again)  # the same fault again, not raised yet...
+    servo.tick_hook = None
+    servo.reset()  # ...is the latched fault a reset clears: nothing left to raise
+    servo.settle()
+    servo.start()
+    servo.stop()

@@ -176,6 +176,7 @@ class RemoteServo:
     def reset(self) -> None:
         self.ring.set_estop(False)
         self.call("reset")
+        self._unsettled = None  # a fault of a begun task's lift is the latched fault just cleared
 
     def request_estop(self) -> None:
         """The software e-stop: a flag in shared memory the loop reads before it writes its next command."""

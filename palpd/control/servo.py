@@ -314,6 +314,6 @@ class ServoLoop(Sensing, Stopping):
 
     def reset(self) -> None:
         """Clear a latched fault (an explicit operator action); the motors stay off until start()."""
-        self.fault = None
+        self.fault, self._unsettled = None, None  # (a fault of a begun task's lift is that latched fault)
         self._estop_requested = False
         self.supervisor.reset()
