@@ -264,6 +264,7 @@ SPHERE = '[[inclusion]]\nshape = "sphere"\ncenter_mm = [0, 0, 8]\nradius_mm = 5\
     (LAYER + LUMP, "[[lump]] belong to a 2-D scene"),
     (LAYER + "poisson = 0.5\n", "tissue.poisson: Input should be less than or equal to 0.495"),
     (LAYER + "[probe]\ntip_radius_mm = 0\n", "probe.tip_radius_mm: Input should be greater than 0"),
+    (LAYER + "[probe]\ntip_radius_mm = 2\n", "probe.tip_radius_mm 2 is below the 2.5 mm the 3-D simulator resolves"),
 ])
 def test_invalid_3d_scenes_are_rejected_with_one_clear_line(tmp_path, text, message):
     path = scene_file(tmp_path, text)

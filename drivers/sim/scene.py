@@ -106,6 +106,12 @@ class Scene(_Strict):
             raise ValueError(f"{what} belong to a 2-D scene; a 3-D tissue is set by thickness_mm, modulus_kpa "
                              "and poisson, its lumps are [[inclusion]] bodies")
         check_inclusions_fit(self.inclusion, tissue.size_mm, tissue.thickness_mm)
+        from drivers.sim.mechanics.table import MIN_TIP_RADIUS_MM
+
+        if self.probe.tip_radius_mm < MIN_TIP_RADIUS_MM:
+            raise ValueError(f"probe.tip_radius_mm {self.probe.tip_radius_mm:g} is below the {MIN_TIP_RADIUS_MM:g} mm "
+                             "the 3-D simulator resolves (its surface nodes are 2 mm apart: a smaller tip's "
+                             "contact is not resolved until it is sunk near its equator)")
         return self
 
     @model_validator(mode="after")

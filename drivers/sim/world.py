@@ -15,7 +15,7 @@ from drivers.geometry import TissueFrame, rotate_xy
 from drivers.interfaces import STATUS_AMPLIFIERS_ON, STATUS_ESTOP, ForceSample
 from drivers.phantom import model
 from drivers.sim.arm import SimArm
-from drivers.sim.faults import SimFaults
+from drivers.sim.faults import RigidObject, SimFaults
 from drivers.sim.mechanics.table import TableField, cached_table
 from drivers.sim.nano17 import SimNano17
 from drivers.sim.scene import Scene
@@ -40,6 +40,9 @@ class SimWorld:
         # a 3-D layer: its finite-element force table (built once per scene, then cached); else the felt field
         self.table = TableField(cached_table(scene), scene.tissue.damping_n_s_per_mm) if scene.tissue.is_3d else None
         self.field = self.table if self.table is not None else StiffnessField(scene)
+        # A 3-D layer is bonded to a rigid base: a tip pressed through the layer's thickness meets it (the table,
+        # linear elastic, would go on as if the layer were deeper: 2.8 mm into a 1 mm layer at 2.6 N)
+        self.base = RigidObject((0.0, 0.0), math.inf, scene.tissue.thickness_mm) if scene.tissue.is_3d else None
         rng = random.Random(hash((scene.seed, seed)) & 0xFFFFFFFF)
         self.sensor = SimNano17(scene.sensor.noise_n, scene.sensor.bias_n, rng)
         self.arm = SimArm()
@@ -197,6 +200,7 @@ class SimWorld:
             vx, vy, vz = (1000.0 * v for v in self.frame.vector_from_robot(model.tip_velocity(q, tuple(self.arm.qd))))
         if self.table is not None:
             normal_n = self.table.force_n(*self._scene_xy(1000.0 * tip[0], 1000.0 * tip[1]), depth_mm, -vz)
+            normal_n += self.base.force_n(0.0, 0.0, depth_mm)
         else:
             k = self.felt_stiffness(1000.0 * tip[0], 1000.0 * tip[1])
             normal_n = hunt_crossley_n(k, self._tissue.exponent, self._tissue.damping_n_s_per_mm, depth_mm, -vz)

@@ -13,7 +13,7 @@ import sys
 from collections import Counter
 
 EXTREMES = ["paper", "noisy-sensor", "very-noisy-sensor", "soft-tissue", "stiff-tissue", "quiet-curved-damped"]
-HEADER = ("| scene | noise N | tissue N/mm | lump N/mm | palpations | stiffness or bound | outcomes | linear models "
+HEADER = ("| scene | noise N | tissue N/mm (3-D: kPa, thickness) | lump N/mm (kPa) | palpations | stiffness or bound | outcomes | linear models "
           "| background k N/mm (median) | verdict | lumps found | IoU |")
 CLEAR_OF_LUMP_MM = 5.0  # a reading this far outside every lump's radius counts as background
 
@@ -54,7 +54,7 @@ def table_row(scene, report: dict) -> str:
     linear = sum(p.get("stiffness_model") in ("linear", "linear-offset") for p in fits)
     background = sorted(p["stiffness_n_per_mm"] for p in fits if _clear_of_lumps(p["xy_mm"], scene))
     m = report["metrics"]
-    lump_k = "/".join(f"{lump.stiffness_n_per_mm:g}" for lump in scene.lump) or "-"
+    lump_k = "/".join(_lump_stiffness(scene)) or "-"
     median = f"{background[len(background) // 2]:.4g}" if background else "-"
     iou = "-" if m["min_iou"] is None else f"{m['min_iou']:.2f}"
     return (f"| {scene.name} | {scene.sensor.noise_n:g} | {_tissue(scene)} | {lump_k} | {len(probes)} "
@@ -64,12 +64,22 @@ def table_row(scene, report: dict) -> str:
 
 def _tissue(scene) -> str:
     t = scene.tissue
+    if t.is_3d:  # a layer on its rigid base: its modulus and thickness, not a felt stiffness
+        return f"{t.modulus_kpa:g} kPa, {t.thickness_mm:g} mm"
     extra = (f", n {t.exponent:g}" if t.exponent != 1.0 else "") + (f", b {t.damping_n_s_per_mm:g}" if t.damping_n_s_per_mm else "")
     return f"{t.stiffness_n_per_mm:g}{extra}"
 
 
+def _lump_stiffness(scene) -> list[str]:
+    if scene.tissue.is_3d:
+        return [f"{body.modulus_kpa:g} kPa" for body in scene.inclusion]
+    return [f"{lump.stiffness_n_per_mm:g}" for lump in scene.lump]
+
+
 def _clear_of_lumps(xy, scene) -> bool:
-    return all(math.dist(xy, lump.center_mm) > lump.radius_mm + CLEAR_OF_LUMP_MM for lump in scene.lump)
+    from drivers.sim.scene import truth_lumps  # as placed on the bench, in the tissue frame the readings are in
+
+    return all(math.dist(xy, lump["center_mm"]) > lump["radius_mm"] + CLEAR_OF_LUMP_MM for lump in truth_lumps(scene))
 
 
 def _pct(part: int, whole: int) -> str:
