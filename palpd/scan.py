@@ -91,21 +91,27 @@ def _sliding_plan(strategy: str, size_mm, max_palpations: int, seed: int, settin
 
 
 def palpations(bench: Bench, settings, planned) -> list[Probe]:
-    """What one planned palpation reads: a point pressed once, or a path slid along (a reading per cycle)."""
+    """What one planned palpation reads: a point pressed once, or a path slid along (a reading per cycle).
+    A pressed point returns while the servo may still be lifting out of it: the caller calls servo.settle()
+    once it has used the reading (palpate's `lifting`)."""
     if settings.palpation.mode == "sliding":
         from palpd.slide import slide
 
         return slide(bench, settings, planned)
-    return [palpate(bench, settings, planned)]
+    return [palpate(bench, settings, planned, lifting=True)]
 
 
-def palpate(bench: Bench, settings, xy_mm) -> Probe:
+def palpate(bench: Bench, settings, xy_mm, lifting: bool = False) -> Probe:
     """One palpation through the servo loop (contact thresholds scaled to the noise the last tare measured),
     then its contact point found from the whole trace and its stiffness fit, or a named outcome. A press
-    that met the force limit early is repeated gently when palpation.too_stiff says so."""
+    that met the force limit early is repeated gently when palpation.too_stiff says so. `lifting`: return
+    with the servo still lifting out of the press (servo.begin); the caller calls servo.settle() before it
+    reads the servo's state, and that raises a fault of the lift."""
     p = settings.palpation
     probe = _press(bench, settings, p, xy_mm)
     if p.too_stiff != "repalpate" or not _stopped_early(probe):
+        if not lifting:
+            bench.servo.settle()
         return probe
     again = _press(bench, settings, p.model_copy(update={"speed_mm_s": p.speed_mm_s * p.gentle_speed_factor}), xy_mm)
     # the gentle press's fit over the first's (less of the controller's lag in it); a fit over a bound; and of
@@ -114,6 +120,8 @@ def palpate(bench: Bench, settings, xy_mm) -> Probe:
     if kept.outcome == "too_stiff" and probe.outcome == "too_stiff":
         kept.stiffness_bound_n_per_mm = max(kept.stiffness_bound_n_per_mm, probe.stiffness_bound_n_per_mm)
     kept.presses = 2
+    if not lifting:
+        bench.servo.settle()
     return kept
 
 
@@ -132,8 +140,17 @@ def _press(bench: Bench, settings, palpation_settings, xy_mm) -> Probe:
     thresholds = contact_thresholds(palpation_settings, getattr(bench.servo.forces, "noise", None),
                                     settings.servo.rate_hz)
     palpation = Palpation(xy_mm, palpation_settings, thresholds)
-    bench.servo.run(palpation)
+    bench.servo.begin(palpation)  # back once the record is final: the fit runs beside the lift (settle)
     return judge(palpation.finish(refit_onset=settings.stiffness.model not in RATE_MODELS), settings)
+
+
+def _settled(servo) -> ScanFault | None:
+    """servo.settle(): the fault that stopped the task begun last after it settled, returned, not raised."""
+    try:
+        servo.settle()
+    except ScanFault as exc:
+        return exc
+    return None
 
 
 def _estimate(planner, probes: list[Probe], settings) -> tuple[list, str, dict | None]:
@@ -196,8 +213,14 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
             for probe in read:
                 probes.append(probe)
                 planner.observe(probe)
+                # The servo may still be lifting out of the press (palpate's `lifting`): its end before the
+                # progress (the daemon journals the record, the lift's end included) and the next motion. A
+                # fault there ends the scan as ever; the reading, complete before it, stands (the learner has it).
+                lift_fault = _settled(servo)
                 if progress:
                     progress(len(probes), max(planner.expected_total, len(probes)), probe)
+                if lift_fault is not None:
+                    raise lift_fault
             xy = planner.next_probe()
         servo.stop()  # parks at the rest pose, then the amplifiers go off
         if servo.fault is not None:  # latched between tasks (the servo process's idle hold): the motors were off

@@ -3,7 +3,11 @@
     python scripts/speed_parts.py ticks [SCENE]        # servo CPU per tick: 9 palpations on a 3 x 3 grid, in-process
     python scripts/speed_parts.py capture [SCENE] FILE # a whole scan in-process; every learner fit's inputs to FILE
     python scripts/speed_parts.py replay FILE [REPS]   # those fits again: best CPU of REPS, and a digest of the results
+    python scripts/speed_parts.py overlap [SCENE]      # a scan through the servo process, the lift overlapped and not
 
+The overlap figures are the parent's, wall and CPU seconds: `begin` is the wait for each palpation's record
+(`run` when not overlapped), `judge` and `observe` the stiffness fit and the learner's update, `settle` the wait
+for the lift's end; the judge's wall over its CPU is the time the parent was off a core while the lift ran.
 The tick figure leaves out the learner and the stiffness fits (the servo loop's share only); the replay's digest
 is over every fit's θ, covariance, noise, evidence and work, so two versions of the learner that give the same
 digest gave the same fits to the last bit. CPU time (process_time), not wall: this machine is shared.
@@ -103,12 +107,54 @@ def replay(path: str, reps: int = 3) -> None:
     print(f"{len(calls)} fits, best CPU {best:.3f} s of {reps}, digest {digest.hexdigest()[:16]}")
 
 
+def overlap(scene_name: str) -> None:
+    import os
+
+    import palpd.scan as scan
+    from palpd.control.remote import RemoteServo
+    from palpd.embedded import run_simulated_scan
+    from palpd.learner.planner import ActivePlanner
+    from palpd.shipped import load_scene_named
+
+    begin = RemoteServo.begin
+    for overlapped in (False, True):
+        spent: dict = {}
+        originals = [(RemoteServo, "begin", "begin"), (RemoteServo, "settle", "settle"), (scan, "judge", "judge"),
+                     (ActivePlanner, "observe", "observe")]
+        RemoteServo.begin = begin if overlapped else (lambda self, task, timeout_s=120.0: self.run(task, timeout_s))
+        saved = [(owner, name, getattr(owner, name)) for owner, name, _ in originals]
+        for owner, name, key in originals:
+            setattr(owner, name, _timed(getattr(owner, name), key, spent))
+        try:
+            report, _ = run_simulated_scan(_settings(), load_scene_named(scene_name))
+        finally:
+            for owner, name, original in saved:
+                setattr(owner, name, original)
+            RemoteServo.begin = begin
+        parts = "  ".join(f"{k} {w:.2f}/{c:.2f}" for k, (w, c) in spent.items())
+        print(f"{'overlapped' if overlapped else 'in turn':10}  wall {report['wall_time_s']:.2f} s "
+              f"({report['robot_time_s'] / report['wall_time_s']:.2f}x)  {parts}  load {os.getloadavg()[0]:.2f}")
+
+
+def _timed(function, key: str, spent: dict):
+    def timed(*args, **kwargs):
+        wall, cpu = time.perf_counter(), time.process_time()
+        try:
+            return function(*args, **kwargs)
+        finally:
+            w, c = spent.get(key, (0.0, 0.0))
+            spent[key] = (w + time.perf_counter() - wall, c + time.process_time() - cpu)
+    return timed
+
+
 def main(argv: list[str]) -> int:
-    if not argv or argv[0] not in ("ticks", "capture", "replay"):
+    if not argv or argv[0] not in ("ticks", "capture", "replay", "overlap"):
         print(__doc__, file=sys.stderr)
         return 2
     if argv[0] == "ticks":
         ticks(argv[1] if len(argv) > 1 else DEFAULT_SCENE)
+    elif argv[0] == "overlap":
+        overlap(argv[1] if len(argv) > 1 else DEFAULT_SCENE)
     elif argv[0] == "capture":
         capture(*(argv[1:3] if len(argv) > 2 else (DEFAULT_SCENE, argv[1])))
     else:

@@ -157,3 +157,74 @@ def test_a_fault_latched_between_tasks_is_seen_by_check_idle_and_a_dead_child_is
         assert fault.code == "servo_lost" and "exited" in fault.message and servo.lost
     finally:
         servo.close()
+
+
+def _slow_lift_palpation():
+    """A palpation whose lift to clearance lasts seconds of robot time (30 mm at 5 mm/s)."""
+    from palpd.control.palpation import Palpation
+
+    p = Settings().palpation.model_copy(update={"clearance_mm": 30.0, "approach_speed_mm_s": 5.0})
+    return Palpation((0.0, 0.0), p)
+
+
+def test_a_begun_palpation_comes_back_once_its_record_is_final_and_ends_while_the_parent_works(bench):
+    servo = bench.servo
+    servo.start()
+    palpation = _slow_lift_palpation()
+    servo.begin(palpation)
+    assert palpation.settled and not palpation.done  # out of the press, still lifting in the servo process
+    record = palpation.finish()  # fitted here, as a scan does, while the servo process lifts
+    assert record.contact and record.t_end_s == 0.0
+    depth, force, unload = list(record.depth_mm), list(record.force_n), list(record.unload_force_n)
+    settled_at, give_up = servo.last_tick.t_s, time.monotonic() + 30.0
+    while servo.header()["now_s"] < settled_at + 0.2 and time.monotonic() < give_up:
+        time.sleep(0.001)
+    assert servo.header()["now_s"] >= settled_at + 0.2  # the lift goes on while we work
+    servo.settle()  # its end: what the lift added to the record, nothing else of it changed
+    assert palpation.done and record.t_end_s > servo.last_tick.t_s - 0.01
+    assert (record.depth_mm, record.force_n, record.unload_force_n) == (depth, force, unload)
+    assert servo.last_tick.tip_mm[2] == pytest.approx(30.0, abs=0.5)
+    servo.stop()
+
+
+def test_a_fault_while_a_begun_palpation_lifts_is_raised_by_settle_and_latched(bench):
+    servo = bench.servo
+    servo.start()
+    palpation = _slow_lift_palpation()
+    servo.begin(palpation)
+    servo.request_estop()  # seconds of lift still to go
+    with pytest.raises(ScanFault, match="estop"):
+        servo.settle()
+    assert servo.fault.code == "estop" and not servo.motors_on and not palpation.done
+    assert palpation.finish().contact  # the record handed back stands
+    servo.settle()  # raised once
+    servo.reset()
+    servo.settle()
+    servo.start()
+    servo.run(MoveTo((0.0, 0.0, 6.0), 40.0, 2000.0))
+    servo.stop()
+
+
+def test_in_process_a_fault_after_a_begun_palpation_settled_is_raised_by_settle_too():
+    from palpd.bench import open_simulated_bench
+
+    servo = open_simulated_bench(Settings(), Scene(name="p", tissue={"stiffness_n_per_mm": 0.6})).servo
+    servo.start()
+    palpation = _slow_lift_palpation()
+    servo.tick_hook = lambda tick: palpation.settled and servo.request_estop()
+    servo.begin(palpation)  # runs to the fault here; raised where the servo process raises it
+    assert servo.fault.code == "estop" and palpation.settled and not palpation.done
+    with pytest.raises(ScanFault, match="estop"):
+        servo.settle()
+    servo.settle()
+    servo.tick_hook = None
+    servo.reset()
+    servo.start()
+    again = _slow_lift_palpation()
+    servo.tick_hook = lambda tick: again.settled and servo.request_estop()
+    servo.begin(again)  # the same fault again, not raised yet...
+    servo.tick_hook = None
+    servo.reset()  # ...is the latched fault a reset clears: nothing left to raise
+    servo.settle()
+    servo.start()
+    servo.stop()

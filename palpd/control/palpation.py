@@ -116,6 +116,10 @@ class Palpation:
         self._lowest_in_contact_mm = math.inf  # the tip's lowest and the highest force since contact
         self._peak_in_contact_n = 0.0
         self.jumped = False  # the setpoint jumped this tick (a release): the servo reads no velocity into it
+        # The record is final but for the lift's own fields (`lifted`): the retract has taken the tip out of
+        # the press whose segment was found, and the rest of it lifts to clearance. A servo process hands the
+        # record back here (RemoteServo.begin) so the host fits it while the lift goes on.
+        self.settled = False
         self.done = False
 
     def step(self, tick) -> Vec3:
@@ -126,8 +130,10 @@ class Palpation:
         self._last_t = tick.motion_t_s
         self.record.lowest_z_mm = min(self.record.lowest_z_mm, tick.tip_mm[2])
         found = self.segmenter.push(tick.t_s, tick.tip_mm, tick.normal_force_n, tick.sample.t_s)
-        if found is not None and (self._segment is None or found.peak_force_n > self._segment.peak_force_n):
-            self._segment = found  # a brush before the press is not the palpation
+        if found is not None and not self.settled and (self._segment is None
+                                                       or found.peak_force_n > self._segment.peak_force_n):
+            # a brush before the press is not the palpation, nor a touch in the lift once the record is out
+            self._segment = found
         return getattr(self, "_" + self._phase)(tick, dt)
 
     def _above(self, tick, dt) -> Vec3:
@@ -205,6 +211,9 @@ class Palpation:
         return self._setpoint()
 
     def _retract(self, tick, dt) -> Vec3:
+        if not self.settled and self._segment is not None and not self.segmenter.in_contact \
+                and self.record.stop_reason != "no_contact":  # (a no_contact record is made at the lift's end)
+            self.settled = True
         target = self._task.step(tick)
         if self._task.done:
             self.record.t_end_s = tick.t_s
@@ -229,6 +238,18 @@ class Palpation:
         seg = Segment(samples[-1][0], samples[-1][3], self.segmenter.baseline_n or 0.0, samples=samples,
                       detected_at=len(samples) - 1, force_lead_s=self.segmenter.force_lead_s)
         return seg
+
+    def lift_end(self) -> tuple:
+        """What the lift after `settled` adds to the record (and whether it ended): all the servo process
+        sends back at the end of a palpation it sent back settled, not the whole task again."""
+        return self.record.t_end_s, self.record.lowest_z_mm, self.segmenter.dropped, self.done
+
+    def lifted(self, end: tuple) -> None:
+        """This palpation, handed back settled, has ended (`lift_end` of its copy in the servo process). None
+        of what the lift adds is read by the fit (probe.judge reads lowest_z_mm only of a no_contact record,
+        which is never handed back early)."""
+        rec = self.record
+        rec.t_end_s, rec.lowest_z_mm, rec.dropped_samples, self.done = end
 
     def finish(self, refit_onset: bool = True) -> PalpationRecord:
         """The record, its contact point found again from the whole trace (host side, after the run)."""

@@ -77,6 +77,8 @@ class ServoProcess:
         self.servo.wind_down_input = ring
         self.servo.tick_hook = self._publish
         self._task_running = False
+        self._settling = None  # a task begun by RemoteServo.begin, until it settles and is sent back
+        self._sent_settled = False
 
     def _publish(self, tick) -> None:
         servo = self.servo
@@ -84,6 +86,13 @@ class ServoProcess:
                 (FLAG_TASK if self._task_running else 0)
         self.ring.write(tick, flags)
         self.ring.beat(tick.t_s, servo.timing.ticks + 1, servo.timing.overruns)
+        task = self._settling
+        if task is not None and task.settled and not task.done:
+            # Its result is final: back to the parent now, which fits it while this loop finishes the task
+            # (a palpation's lift to clearance), supervised as ever; the end, or its fault, follows as the
+            # usual reply. In virtual time this puts the parent's work beside the loop's on the other core.
+            self._settling, self._sent_settled = None, True
+            self.conn.send(("ok", {"task": task, "fault": None, "settled": True}, self._state()))
 
     def serve(self) -> None:
         try:
@@ -141,16 +150,22 @@ class ServoProcess:
         self.conn.send((kind, payload, self._state()))
         return command != "quit"
 
-    def _run(self, task, timeout_s: float):
-        """The finished task back, and the fault's message if safety stopped it."""
-        self._task_running = True
+    def _run(self, task, timeout_s: float, early: bool = False):
+        """The finished task back, and the fault's message if safety stopped it. `early` (RemoteServo.begin):
+        the task is sent back once more before that, when it has settled (_publish); not on the wall clock,
+        where a mid-task send would cost the tick it falls in its deadline."""
+        self._task_running, self._sent_settled = True, False
+        self._settling = task if early and not self.realtime else None
+        fault = None
         try:
             self.servo.run(task, timeout_s)
-            return {"task": task, "fault": None}, "ok"
         except ScanFault as exc:
-            return {"task": task, "fault": str(exc)}, "ok"
+            fault = str(exc)
         finally:
-            self._task_running = False
+            self._task_running, self._settling = False, None
+        if self._sent_settled:  # the parent has the task as it settled: only what came after that
+            return {"lift_end": task.lift_end(), "fault": fault}, "ok"
+        return {"task": task, "fault": fault}, "ok"
 
     def _faulted(self, action):
         """Run a motion (start homes, stop parks) as a task: None, or the fault's message if safety stopped it."""

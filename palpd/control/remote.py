@@ -149,6 +149,8 @@ class RemoteServo:
         self._lock = threading.Lock()  # one request at a time (the daemon's worker and its command handlers)
         self._beat, self._beat_seen_at = -1, time.monotonic()
         self._closed = False
+        self._begun = None  # a task sent back settled (begin) whose end is still to be read from the pipe
+        self._unsettled: str | None = None  # the fault that stopped it after it settled, for settle() to raise
 
     @property
     def pid(self) -> int:
@@ -174,6 +176,7 @@ class RemoteServo:
     def reset(self) -> None:
         self.ring.set_estop(False)
         self.call("reset")
+        self._unsettled = None  # a fault of a begun task's lift is the latched fault just cleared
 
     def request_estop(self) -> None:
         """The software e-stop: a flag in shared memory the loop reads before it writes its next command."""
@@ -186,10 +189,43 @@ class RemoteServo:
 
     def run(self, task, timeout_s: float = 120.0) -> None:
         """Run the task in the servo process; the finished task's state is copied back into `task`."""
+        self.settle()
         done = self.call("run", task, timeout_s)
         task.__dict__.update(done["task"].__dict__)
         if done["fault"] is not None:
             raise ScanFault(done["fault"])
+
+    def begin(self, task, timeout_s: float = 120.0) -> None:
+        """As run, but back as soon as the task has `settled` (a palpation lifting out of the press: its
+        record is final), with the task as it was then; the servo process finishes it, supervised as ever,
+        while the caller works on the result. In virtual time the loop ticks only while a task runs, so
+        without this the parent's fits and the loop's ticks take turns on one core. settle() waits for the
+        end (`task.lifted` takes what it added) and raises a fault that came after; so does every later
+        request, before its own. A task that ends or faults before it settles returns as from run()."""
+        self.settle()
+        done = self.call("run", task, timeout_s, True, begins=task)
+        task.__dict__.update(done["task"].__dict__)
+        if not done.get("settled") and done["fault"] is not None:
+            raise ScanFault(done["fault"])
+
+    def settle(self) -> None:
+        """The task begun last has ended; raises ScanFault if safety stopped it after it settled."""
+        with self._lock:
+            self._end_begun()
+            fault, self._unsettled = self._unsettled, None
+        if fault is not None:
+            raise ScanFault(fault)
+
+    def _end_begun(self) -> None:
+        """Read the end of the task begun last (under the lock: any request waits for it first)."""
+        task, self._begun = self._begun, None
+        if task is None:
+            return
+        kind, payload, state = self._receive(None)
+        if state is not None:
+            self._take(state)
+        task.lifted(payload["lift_end"])
+        self._unsettled = payload["fault"]
 
     def header(self) -> dict:
         """The loop's shared-memory header; after close(), as it was last."""
@@ -232,11 +268,16 @@ class RemoteServo:
             self._beat, self._beat_seen_at = beat, time.monotonic()
         return time.monotonic() - self._beat_seen_at
 
-    def call(self, command: str, *args, wait_s: float | None = None):
+    def call(self, command: str, *args, wait_s: float | None = None, begins=None):
+        """One request and its reply. `begins`: the task of a run sent back settled (begin), whose end is
+        then the next reply on the pipe: taken under the same lock, so no other thread's request reads it."""
         with self._lock:
+            self._end_begun()
             if command != "hello":
                 self._send((command, *args))
             kind, payload, state = self._receive(wait_s)
+            if begins is not None and kind != "error" and payload.get("settled"):
+                self._begun = begins
         if state is not None:
             self._take(state)
         if kind == "error":

@@ -56,6 +56,7 @@ class ServoLoop(Sensing, Stopping):
         self.truth = truth  # the simulated world, when there is one: the true contact force
         self._sim_cpu_s = truth.cpu_s if truth is not None else 0.0
         self.fault: Fault | None = None
+        self._unsettled: ScanFault | None = None  # a fault of a task begun (begin) after it settled
         self.timing = TimingStats(rate_hz)
         self.max_contact_force_n = 0.0
         self.last_tick: Tick | None = None
@@ -144,9 +145,28 @@ class ServoLoop(Sensing, Stopping):
     def _wind_down_wanted(self) -> bool:
         return self._wind_down_requested or (self.wind_down_input is not None and self.wind_down_input.wind_down_wanted())
 
+    def begin(self, task, timeout_s: float = 120.0) -> None:
+        """run() for a caller that goes on with the task's result once it has `settled` and calls settle()
+        before anything else (RemoteServo.begin returns there while the servo process finishes the task). In
+        process the task runs to its end here; a fault after it settled is raised by settle(), as there."""
+        self.settle()
+        try:
+            self.run(task, timeout_s)
+        except ScanFault as exc:
+            if not getattr(task, "settled", False):
+                raise
+            self._unsettled = exc
+
+    def settle(self) -> None:
+        """The task begun last has ended: raises the ScanFault that stopped it after it settled."""
+        fault, self._unsettled = self._unsettled, None
+        if fault is not None:
+            raise fault
+
     def run(self, task, timeout_s: float = 120.0) -> None:
         """Tick until the task is done; raises ScanFault (motors already off) if safety stops it.
         A task with wind_down() hears a wind-down request on the tick it comes."""
+        self.settle()
         if self.fault is not None:
             raise ScanFault(f"fault latched ({self.fault.code}): {self.fault.message}; reset first")
         self._resume()
@@ -294,6 +314,6 @@ class ServoLoop(Sensing, Stopping):
 
     def reset(self) -> None:
         """Clear a latched fault (an explicit operator action); the motors stay off until start()."""
-        self.fault = None
+        self.fault, self._unsettled = None, None  # (a fault of a begun task's lift is that latched fault)
         self._estop_requested = False
         self.supervisor.reset()

@@ -66,8 +66,11 @@ class SurfaceGuard:
 
     def surface_z_mm(self, x_mm: float, y_mm: float) -> float:
         best, nearest = NEAR_MM, 0.0
-        for cx, cy, cz in self.contacts:
-            distance = math.hypot(x_mm - cx, y_mm - cy)
+        for cx, cy, cz in self.contacts:  # every servo tick, over every palpation of the scan so far
+            dx, dy = x_mm - cx, y_mm - cy
+            if abs(dx) >= best or abs(dy) >= best:  # no nearer (the hypot is at least either): no hypot to take
+                continue
+            distance = math.hypot(dx, dy)
             if distance < best:
                 best, nearest = distance, cz
         return nearest
