@@ -11,10 +11,9 @@ from hypothesis import HealthCheck, Phase, assume, example, given, settings as h
 
 from drivers.sim.mechanics.table import MIN_TIP_RADIUS_MM
 from drivers.sim.scene import Scene
-from palpd.bench import open_simulated_bench
 from palpd.config import Settings
-from palpd.control.tasks import HoldAndCollect, MoveTo
 from palpd.scan import palpate
+from test_extremes import tared_bench  # the same bench, started, above the tissue and tared
 
 SETTINGS = Settings()
 SIZE_MM = 12.0  # a small layer: its table builds in 0.1-1.3 s
@@ -35,13 +34,7 @@ def layer(thickness_mm, modulus_kpa, poisson=0.48, tip_mm=2.5, noise_n=0.01, inc
 
 
 def pressed(scene):
-    bench = open_simulated_bench(SETTINGS, scene)
-    bench.servo.start()
-    above = (0.0, 0.0, SETTINGS.palpation.clearance_mm)
-    bench.servo.run(MoveTo(above, 80.0, 2000.0))
-    tare = HoldAndCollect(SETTINGS.palpation.tare_samples, where=above)
-    bench.servo.run(tare)
-    bench.servo.forces.tare(tare.samples)
+    bench = tared_bench(scene)
     return bench, palpate(bench, SETTINGS, (0.0, 0.0))
 
 

@@ -181,8 +181,6 @@ def build_table(scene, depths_mm=DEPTHS_MM, element_mm: float = ELEMENT_MM,
     """F(x, y, δ) at every surface node of the palpable rectangle (the scene's own frame, before its rotation)."""
     import time
 
-    from tqdm import tqdm
-
     started = time.monotonic()
     block = layer_compliance(scene, element_mm, surface_element_mm)
     surface_xy, compliance = surface_matrix(block, _reach_mm(scene), progress)
