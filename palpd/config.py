@@ -178,6 +178,9 @@ class LearnerSettings(_Section):
 
     confidence: Annotated[float, Field(gt=0.5, lt=1.0)] = 0.9  # stop when the lump count has this posterior mass...
     tolerance_mm: Annotated[float, Field(gt=0, le=100)] = 0.5  # ...and the expected boundary error (mm) this
+    # the prior's expected count of lumps on the tissue before any reading: what weighs the area that lumps no
+    # reading has felt yet could take, part of the expected boundary error (tolerance_mm)
+    expected_lumps: Annotated[float, Field(ge=0, le=100)] = 1.0
     max_palpations: Annotated[int, Field(ge=1, le=10000)] = 40
     initial_points: Annotated[int, Field(ge=0, le=1000)] = 8  # first design: points of the covering lattice
     grid_points: Annotated[int, Field(ge=11, le=401)] = 121  # candidate grid, per side

@@ -117,7 +117,9 @@ def test_a_textured_stiff_region_past_the_tissue_edge_is_decided_and_reported_by
     ellipse centred 6 mm off and 40 mm in radius, its boundary mostly where no tissue is (IoU 0.27)."""
     report, m = scans["textured-half-map"]
     assert report["faults"] == [] and report["verdict"] == "lumps", report["model"]
-    assert report["palpations"] <= 25 and m["lumps_found"] == 1 and m["false_lumps"] == 0
+    # it may read to the budget: the texture keeps the stated boundary error near 0.6 mm once the area of lumps
+    # no reading has felt is in it, over the default tolerance of 0.5 (it stopped at 25 before that was)
+    assert report["palpations"] <= 40 and m["lumps_found"] == 1 and m["false_lumps"] == 0
     assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5 and m["min_iou"] >= 0.9, m
     (lump,) = report["lumps"]
     assert lump["cut_by_edge"] is True and lump["boundary_sd_mm"] <= 0.5

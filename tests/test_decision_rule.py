@@ -79,3 +79,71 @@ def test_the_tolerance_trades_palpations_for_boundary_error():
     learner.settings = learner.settings.model_copy(update={"tolerance_mm": 0.25})
     learner._cache.clear()
     assert stated > 0.25 and not learner.decided() and learner.next_probe(30) is not None
+
+
+def _readings_on(size_mm=60.0, step_mm=2.0):
+    from palpd.learner.coverage import Readings
+
+    axis = np.arange(-size_mm / 2, size_mm / 2 + 1e-9, step_mm)
+    gx, gy = np.meshgrid(axis, axis)
+    return Readings(np.column_stack([gx.ravel(), gy.ravel()]), 1.5)
+
+
+RADII = (0.5, 30.0)
+
+
+@hsettings(max_examples=25, deadline=None)
+@given(points=st.lists(st.tuples(st.floats(-30, 30), st.floats(-30, 30)), min_size=1, max_size=30),
+       expected=st.floats(0.0, 5.0))
+def test_the_unfelt_area_is_the_prior_s_before_any_reading_and_no_reading_adds_to_it(points, expected):
+    """Lumps no reading felt keep their prior: before any reading the expected area of `expected` lumps with
+    radii log-uniform over RADII (the mean of π r² over them); each reading can only take some off, and what
+    is left is at most the area of lumps of a radius up to the farthest spot's distance."""
+    readings = _readings_on()
+    radii = np.exp(np.linspace(math.log(RADII[0]), math.log(RADII[1]), 48))
+    before = readings.unfelt_area_mm2(expected, RADII)
+    assert before == pytest.approx(expected * float(np.mean(math.pi * radii**2)), rel=1e-9)
+    for p in points:
+        readings.add(p)
+        after = readings.unfelt_area_mm2(expected, RADII)
+        assert after <= before + 1e-9
+        before = after
+    reach = readings.distance_mm.max()
+    assert before <= expected * float(np.mean(np.where(radii < reach, math.pi * radii**2, 0.0))) + 1e-9
+
+
+@hsettings(max_examples=15, deadline=None)
+@given(points=st.lists(st.tuples(st.floats(-30, 30), st.floats(-30, 30)), min_size=1, max_size=20))
+def test_a_reading_at_the_best_unfelt_spot_takes_off_at_least_what_one_at_the_farthest_spot_does(points):
+    """best_unfelt_spot weighs each hole by what it could hide: never worse than the farthest spot, which is
+    on the tissue's edge or in a corner more often than not."""
+    import copy
+
+    readings = _readings_on()
+    for p in points:
+        readings.add(p)
+    far = readings.cells_xy[int(np.argmax(readings.distance_mm))]
+    best = readings.best_unfelt_spot(1.0, RADII)
+    at_far, at_best = copy.deepcopy(readings), copy.deepcopy(readings)
+    at_far.add(far)
+    at_best.add(best)
+    assert at_best.unfelt_area_mm2(1.0, RADII) <= at_far.unfelt_area_mm2(1.0, RADII) + 1e-9
+
+
+def test_the_stated_boundary_error_holds_the_unfelt_lumps_area_and_a_tight_tolerance_reads_the_holes():
+    """(b) of the stop rule: the expected misread area is the hypotheses' doubt about the boundary drawn plus
+    the area lumps no reading felt could take. With the drawn boundary known to the tolerance and the unfelt
+    area what keeps the error above it, the next probe goes where one reading takes most of that area off."""
+    learner = learn(field([((7.5, -4.0), 10.0, 3.0, 0.8)]), budget=20, grid=31)
+    drawn, unfelt, length = learner._boundary_error_parts()
+    assert unfelt == pytest.approx(learner.unfelt_area_mm2()) and unfelt > 0.0
+    assert learner.expected_boundary_error_mm() == pytest.approx((drawn + unfelt) / length)
+    tolerance = 0.5 * (drawn + (drawn + unfelt)) / length  # between the drawn error and the whole one
+    learner.settings = learner.settings.model_copy(update={"tolerance_mm": tolerance})
+    learner._cache.clear()
+    assert not learner._boundary_known()
+    hole = learner._unfelt_hole()
+    assert hole == learner.coverage.best_unfelt_spot(learner.settings.expected_lumps, learner._unfelt_radii())
+    learner.settings = learner.settings.model_copy(update={"expected_lumps": 0.0})
+    learner._cache.clear()
+    assert learner._unfelt_hole() is None and learner.unfelt_area_mm2() == 0.0

@@ -1043,16 +1043,16 @@ def test_a_soft_reading_read_roughly_is_tried_as_a_soft_region_beside_a_lump_rea
 
 
 def test_the_count_s_posterior_gathers_every_hypothesis_that_claims_it():
-    from palpd.learner.hypotheses import Choice
+    from palpd.learner.hypotheses import Choice, lumps_claimed
 
     weights = {"circles:1": 0.56, "ellipse:1": 0.38, "circles:2": 0.04, "none+soft:1": 0.01, "free-form": 0.01}
     choice = Choice("circles:1", 0.56, "ellipse:1", weights,
-                    {Choice.count_of(m): 0.0 for m in weights})
+                    {lumps_claimed(m): 0.0 for m in weights})
     for m, w in weights.items():
-        choice.counts[Choice.count_of(m)] += w
+        choice.counts[lumps_claimed(m)] += w
     assert choice.counts == pytest.approx({1: 0.94, 2: 0.04, 0: 0.01, "free-form": 0.01})
     assert choice.count_weight == pytest.approx(0.94)  # one lump, surely; its outline less so (0.56)
-    assert [Choice.count_of(m) for m in ("none", "circles:3+soft:1", None)] == [0, 3, None]
+    assert [choice.count_of(m) for m in ("none", "circles:3+soft:1", None)] == [0, 3, None]
 
 
 def test_the_expected_boundary_error_is_the_uncertain_area_over_the_boundary_s_length():

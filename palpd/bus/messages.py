@@ -171,8 +171,12 @@ class ModelChoice(BaseModel):
     """The posterior mass of the chosen hypothesis's lump count: every hypothesis that claims as many lumps
     (the verdict stands on it, whichever outline those hypotheses draw)."""
     expected_boundary_error_mm: Optional[float] = None
-    """The reported boundary's expected error: the expected misclassified area ∫ min(P, 1 − P) dA under the chosen
-    hypothesis, divided by the boundary's length (null without a lump): what `tolerance_mm` speaks of."""
+    """The reported boundary's expected error: the expected misclassified area ∫ min(P, 1 − P) dA with P(lump)
+    averaged over the hypotheses, plus `unfelt_area_mm2`, divided by the boundary's length (null without a
+    lump): what `tolerance_mm` speaks of."""
+    unfelt_area_mm2: Optional[float] = None
+    """The expected area of lumps no reading has felt yet (their prior, `learner.expected_lumps`, wherever a
+    lump's disc holds no reading): part of the expected boundary error, what a tighter tolerance reads on for."""
     unfelt_radius_mm: Optional[float] = None
     """The farthest any spot of the tissue lies from a reading: a lump of smaller radius could sit between the
     readings unfelt, so the count means "no other lump this large or larger"."""

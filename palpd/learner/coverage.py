@@ -30,6 +30,8 @@ MAX_GAP_RAD = 2.0 * math.pi / 3.0  # no third of a turn of edge unread
 OUTSIDE_STEPS = 36
 CLUSTER_LUMPS = 2  # lumps found together, the closer look around them begins (satellite_hole)
 SATELLITE_GAP = 1.0  # a satellite's edge within this many of its neighbour's radii of the neighbour's edge
+UNFELT_RADII = 48  # radii the unfelt area is summed over, log-spaced (unfelt_area_mm2)
+UNFELT_BLOCK = 256  # candidate spots weighed at once (best_unfelt_spot): a block's distances to every cell
 
 
 def unconfirmed_centre(fit, readings_xy: np.ndarray, spacing_mm: float) -> np.ndarray | None:
@@ -236,6 +238,44 @@ class Readings:
     @property
     def spots(self) -> int:
         return len(self._spots)
+
+    def unfelt_area_mm2(self, expected_lumps: float, radius_range_mm: tuple[float, float]) -> float:
+        """The expected area of the lumps no reading has felt: what the tissue may still hold beside the lumps
+        the hypotheses draw. A lump is felt when a reading lies within its radius (a sharp edge is felt only
+        inside it; a blurred one a little beyond, so this is the upper end). Lumps no reading felt leave
+        every reading as it is, so their posterior is their prior: `expected_lumps` on the tissue, centres
+        anywhere, radii log-uniform over `radius_range_mm` (priors.py's), each of radius r hiding wherever its
+        centre is farther than r from every reading. Hence the expected count of radius r unfelt is
+        expected_lumps × the share of cells farther than r, and its area π r² each: a sum over the cells of
+        what a centre there could hide (`_hidden_per_cell`). Before any reading: the prior's whole area."""
+        return float(self._hidden_per_cell(self.distance_mm, expected_lumps, radius_range_mm).sum())
+
+    def best_unfelt_spot(self, expected_lumps: float, radius_range_mm: tuple[float, float]) -> tuple[float, float]:
+        """The cell where one reading takes the most off `unfelt_area_mm2`: the middle of the widest hole,
+        weighed by how much each hole could hide (the farthest cell alone is on the tissue's edge or in a
+        corner, where a reading rules out a quarter of what it would in a hole between readings)."""
+        cells = self.cells_xy
+        far = self.probe_distance_mm > self.spacing_mm  # not where a palpation was made
+        candidates = cells[far] if far.any() else cells
+        before = self._hidden_per_cell(self.distance_mm, expected_lumps, radius_range_mm).sum()
+        after = np.empty(len(candidates))
+        for start in range(0, len(candidates), UNFELT_BLOCK):
+            block = candidates[start:start + UNFELT_BLOCK]
+            distance = np.hypot(cells[None, :, 0] - block[:, None, 0], cells[None, :, 1] - block[:, None, 1])
+            nearest = np.minimum(self.distance_mm[None, :], distance)
+            after[start:start + UNFELT_BLOCK] = self._hidden_per_cell(nearest, expected_lumps, radius_range_mm).sum(axis=1)
+        best = int(np.argmin(after))
+        return (float(candidates[best][0]), float(candidates[best][1])) if after[best] < before else \
+            tuple(map(float, cells[int(np.argmax(self.distance_mm))]))
+
+    def _hidden_per_cell(self, distance_mm: np.ndarray, expected_lumps: float,
+                         radius_range_mm: tuple[float, float]) -> np.ndarray:
+        """Each cell's part of the unfelt area, given its distance to the nearest reading: expected_lumps over
+        the cells, times the mean over the radii of π r² for every radius it is farther than."""
+        radii = np.exp(np.linspace(math.log(radius_range_mm[0]), math.log(radius_range_mm[1]), UNFELT_RADII))
+        below = np.concatenate([[0.0], np.cumsum(math.pi * radii**2)]) / UNFELT_RADII  # mean π r² over radii < d
+        hidden = below[np.searchsorted(radii, distance_mm, side="left")]
+        return expected_lumps * hidden / len(self.cells_xy)
 
     def farthest_beyond(self, reach_mm: float) -> tuple[float, float] | None:
         """The cell farthest from every reading, if it is beyond `reach_mm` (None before any reading)."""

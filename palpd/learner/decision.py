@@ -15,9 +15,11 @@ from scipy.special import ndtr
 from palpd.estimate import LumpEstimate
 from palpd.learner import acquisition, coverage, describe, shapes
 from palpd.learner.evidence import ADEQUATE_NOISE, Fit
+from palpd.learner.hypotheses import lumps_claimed
 from palpd.learner.likelihood import texture_sd
 from palpd.learner.lumps import boundary_stretches, find_lumps
 from palpd.learner.observations import AT_LEAST
+from palpd.learner.priors import MAX_RADIUS_FRACTION, MIN_RADIUS_MM
 from palpd.learner.threshold import lump_points, surely_above
 
 MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model's parameter count
@@ -47,20 +49,56 @@ class Decision:
         error = self.expected_boundary_error_mm()
         return self.choice.as_dict() | {"count_weight": round(self.choice.count_weight, 4),
                                         "expected_boundary_error_mm": None if error is None else round(error, 3),
+                                        "unfelt_area_mm2": round(self.unfelt_area_mm2(), 1),
                                         "unfelt_radius_mm": round(self.unfelt_radius_mm(), 1),
                                         "undecided": self.undecided()} | ({"soft_regions": soft} if soft else {})
 
     def expected_boundary_error_mm(self) -> float | None:
-        """The reported boundary's expected error in mm: the posterior expected misclassified area,
-        ∫ min(P, 1 − P) dA over the tissue, divided by the boundary's length (None without a lump). P is the
-        chosen hypothesis's P(lump), so the figure is what the user's tolerance (`tolerance_mm`) speaks of."""
-        lumps = self.lumps()
-        half = np.asarray(self.size_mm) / 2.0
-        length = sum(_perimeter_mm(np.asarray(lump.boundary_mm), half) for lump in lumps)
-        if self.choice is None or length <= 0.0:
+        """The reported boundary's expected error in mm: the posterior expected misclassified area over the
+        tissue, divided by the boundary's length (None without a lump): ∫ min(P, 1 − P) dA, P the P(lump)
+        averaged over the hypotheses, plus the expected area of lumps no reading has felt yet
+        (`unfelt_area_mm2`), which no hypothesis draws and every one leaves out. So the figure is what the
+        user's tolerance (`tolerance_mm`) speaks of, and a tighter one reads the holes between the readings
+        too, where a smaller lump could lie."""
+        parts = self._boundary_error_parts()
+        return None if parts is None else (parts[0] + parts[1]) / parts[2]
+
+    def _boundary_error_parts(self) -> tuple[float, float, float] | None:
+        """(the misclassified area the hypotheses expect, the unfelt lumps' expected area, the reported
+        boundary's length), None without a lump."""
+        if "error" not in self._cache:
+            lumps = self.lumps()
+            half = np.asarray(self.size_mm) / 2.0
+            length = sum(_perimeter_mm(np.asarray(lump.boundary_mm), half) for lump in lumps)
+            if self.choice is None or length <= 0.0:
+                self._cache["error"] = None
+            else:
+                p = self.averaged_p_lump()
+                self._cache["error"] = (float(np.minimum(p, 1.0 - p).sum() * self.cell_area_mm2),
+                                        self.unfelt_area_mm2(), length)
+        return self._cache["error"]
+
+    def unfelt_area_mm2(self) -> float:
+        """The expected area of lumps no reading has felt, under the priors' radius range and the settings'
+        expected count of lumps (coverage.Readings.unfelt_area_mm2)."""
+        return self.coverage.unfelt_area_mm2(self.settings.expected_lumps, self._unfelt_radii())
+
+    def _unfelt_radii(self) -> tuple[float, float]:
+        return MIN_RADIUS_MM, MAX_RADIUS_FRACTION * max(self.size_mm)
+
+    def _unfelt_hole(self) -> tuple[float, float] | None:
+        """Where one reading takes most off the area unfelt lumps could take (coverage.best_unfelt_spot), when
+        that area is what keeps the boundary error above the tolerance, not the drawn boundary's doubt (the
+        score's to shrink). next_probe asks it last, once all else holds: asked first, it sent a cone's scan
+        to the tissue's edges before a reading on its top, and the fit settled 1.7 mm too wide."""
+        parts = self._boundary_error_parts()
+        if parts is None:
             return None
-        p = self.averaged_p_lump()
-        return float(np.minimum(p, 1.0 - p).sum() * self.cell_area_mm2 / length)
+        drawn, unfelt, length = parts
+        tolerance = self.settings.tolerance_mm
+        if drawn / length > tolerance or (drawn + unfelt) / length <= tolerance:
+            return None
+        return self.coverage.best_unfelt_spot(self.settings.expected_lumps, self._unfelt_radii())
 
     def undecided(self) -> str | None:
         """Why the verdict does not stand yet (None once it does), in the order `_count_made` asks:
@@ -81,7 +119,7 @@ class Decision:
             runner_up = f"; runner-up {self.choice.runner_up}" if self.choice.runner_up else ""
             return (f"{chosen} weighs {weight:.3f} and its count of lumps {self.choice.count_weight:.3f}, under the "
                     f"confidence asked for ({self.settings.confidence:g}){runner_up}")
-        if count != self.choice.count_of(self._chosen_before):
+        if count != self._count_before:
             return f"the count became {chosen} on the newest reading"
         return self._count_doubt()
 
@@ -101,8 +139,10 @@ class Decision:
             return []
         fit = self.chosen_fit()
         if fit is not None:
-            lumps = describe.lumps_of(fit, self.supervised_tau_n_per_mm, self.size_mm)
-            return lumps if self.supervised_tau_n_per_mm is None else [l for l in lumps if self._past_tau(l)]
+            parts = describe.parts_of(fit, self.supervised_tau_n_per_mm, self.size_mm)
+            if self.supervised_tau_n_per_mm is not None:
+                parts = [(j, lump) for j, lump in parts if self._past_tau(lump)]
+            return describe.regions_of(fit, parts, self.size_mm)
         exact = self.obs.exact
         k = np.exp(self.obs.y[exact])
         lv = self._levels()
@@ -129,7 +169,8 @@ class Decision:
             (`_count_doubt`, stopping).
         (b) The boundary is known to the tolerance: the expected boundary error, the posterior expected
             misclassified area ∫ min(P, 1 − P) dA with P(lump) averaged over the hypotheses by their
-            weight, divided by the reported boundary's length, is at most `tolerance_mm`
+            weight, plus the expected area of lumps no reading has felt (their prior: `expected_lumps`,
+            `unfelt_area_mm2`), divided by the reported boundary's length, is at most `tolerance_mm`
             (`expected_boundary_error_mm`; no boundary, nothing to bound). A lump's posterior is believed
             once readings lie on it: its centre, its edge where its sd exceeds the tolerance, and its top
             (`_unpinned`).
@@ -145,19 +186,21 @@ class Decision:
         """
         return self._holds_now() and self._count_doubt(stopping=True) is None
 
-    def _holds_now(self) -> bool:
+    def _holds_now(self, unfelt: bool = True) -> bool:
         """The stop rule but for the count checks only a stop asks (`_count_doubt(stopping=True)`: an
         unexplored spot, which next_probe fills before it asks this; a hole beside lumps found together and a
-        rival's decisive spot, which weigh the whole grid, so they are looked for once all else holds)."""
-        return self._count_made() and self._count_doubt() is None and self._boundary_known() \
+        rival's decisive spot, which weigh the whole grid, so they are looked for once all else holds).
+        Without `unfelt`, (b) leaves out the unfelt lumps' area: what the holes between the readings are
+        read for, last (`_unfelt_hole`)."""
+        return self._count_made() and self._count_doubt() is None and self._boundary_known(unfelt) \
             and self._readings_explained()
 
-    def _boundary_known(self) -> bool:
-        """(b) of the stop rule."""
+    def _boundary_known(self, unfelt: bool = True) -> bool:
+        """(b) of the stop rule (without `unfelt`: but for the unfelt lumps' area)."""
         if self._unpinned() is not None:
             return False
-        error = self.expected_boundary_error_mm()
-        return error is None or error <= self.settings.tolerance_mm
+        parts = self._boundary_error_parts()
+        return parts is None or (parts[0] + (parts[1] if unfelt else 0.0)) / parts[2] <= self.settings.tolerance_mm
 
     def _readings_explained(self) -> bool:
         """(c) of the stop rule."""
@@ -305,8 +348,10 @@ class Decision:
             fit = self.hypotheses.laplace(name) if name != chosen else None
             if fit is None or weight < DECISIVE_WEIGHT or fit.noise_sd > adequate_sd:
                 continue
-            if self.choice.count_of(name) == self.choice.count_of(chosen):
-                continue  # another shape of the same count: its doubt is in P, what the tolerance bounds
+            if lumps_claimed(name) == lumps_claimed(chosen):
+                continue  # another shape of as many lumps: its doubt is in P, what the tolerance bounds
+            # (as many drawn, not as many regions: two overlapping circles beside one ellipse over a lump and a
+            # neighbour's edge are one region now, two lumps once a reading where they disagree parts them)
             rival_mean, rival_var = self._moments(fit, cells)
             odds = math.log(self.choice.weights[chosen] / weight)  # both among every rival (hypotheses.Choice)
             overturn = 0.5 * (mean - rival_mean) ** 2 / (var + rival_var + noise) - odds
@@ -403,7 +448,7 @@ class Decision:
         choice = self.choice
         if not self._confident():
             return False
-        return self._adequate() and choice.count_of(choice.chosen) == choice.count_of(self._chosen_before)
+        return self._adequate() and choice.count_of(choice.chosen) == self._count_before
 
     def _no_lump_chosen(self) -> bool:
         """The choice is a model without lumps: `none`, or none on a background with a soft region."""
@@ -475,7 +520,7 @@ class Decision:
         rival = self._rivals_unread_lump() if chosen else None
         if rival is not None:  # a rival's lump where nothing was read: one reading over it says if it is there
             return float(rival[0]), float(rival[1])
-        stands = chosen and self._holds_now()
+        stands = chosen and self._holds_now(unfelt=False)
         # lumps found together and a hole beside them a lump could hide in: asked once all else holds, or once the
         # chosen fit misses its readings (an unmodelled lump beside them is the likeliest cause: touching-lumps'
         # third lump, whose tail the two found misfit, was never read while the probes circled the two)
@@ -485,6 +530,9 @@ class Decision:
         decisive = self._decisive_spot() if stands else None
         if decisive is not None:  # all else holds: one reading where a rival as good disagrees most
             return float(decisive[0]), float(decisive[1])
+        hole = self._unfelt_hole() if stands else None
+        if hole is not None:  # all else holds but for lumps a hole between the readings could hide
+            return hole
         cells = self._candidates()
         score = self._score(cells)
         here = self.probed[-1] if self.probed else None

@@ -19,22 +19,29 @@ from __future__ import annotations
 
 import math
 
+import contourpy
 import numpy as np
 
 from dataclasses import replace
 
 from palpd.estimate import LumpEstimate
-from palpd.learner import depth, shapes
+from palpd.learner import depth, evidence, shapes
 from palpd.learner.evidence import Fit
 from palpd.learner.priors import profile_branch
 
 MOSTLY_OFF = 0.5  # a lump with less than this share of its boundary on the tissue is reported by its part there
 STEP = 1e-5  # central-difference step on a lump's shape parameters (centre in mm; log radius and stretch)
 CUT_VERTICES = 360  # a cut lump's boundary: its part on the tissue may be a short arc of a large shape
+UNION_GRID_MM = 0.2  # the grid a union of overlapping lumps is outlined on (union_of)
 
 
 def lumps_of(fit: Fit, tau_n_per_mm: float | None = None, size_mm=None) -> list[LumpEstimate]:
     """Each lump of a parametric fit as reported; with the tissue's size, on the tissue (see above)."""
+    return [lump for _, lump in parts_of(fit, tau_n_per_mm, size_mm)]
+
+
+def parts_of(fit: Fit, tau_n_per_mm: float | None = None, size_mm=None) -> list[tuple[int, LumpEstimate]]:
+    """(index in the fit, lump) of each lump of a parametric fit that reaches τ (every lump without one)."""
     half = None if size_mm is None else np.asarray(size_mm, dtype=float) / 2.0
     out = []
     for j in range(fit.family.k):
@@ -42,8 +49,73 @@ def lumps_of(fit: Fit, tau_n_per_mm: float | None = None, size_mm=None) -> list[
         scale = 1.0 if tau_n_per_mm is None else _level_scale(fit, part, tau_n_per_mm)
         if scale is not None:
             lump = _one(fit.theta[part], fit.cov[part, part], fit.family.kind == "ellipses", scale, half)
-            out.append(_with_depth(lump, fit.theta[part], fit.cov[part, part]))
+            out.append((j, _with_depth(lump, fit.theta[part], fit.cov[part, part])))
     return out
+
+
+def regions_of(fit: Fit, parts: list[tuple[int, LumpEstimate]], size_mm=None) -> list[LumpEstimate]:
+    """The reported lumps: the parts (parts_of) gathered into connected stiff regions (evidence.regions), a
+    region of several parts as one lump (its outline, centroid and equal-area radius: union_of)."""
+    by_index = dict(parts)
+    out = []
+    for group in evidence.regions(fit.family, fit.theta):
+        members = [by_index[j] for j in group if j in by_index]
+        if members:
+            out.append(members[0] if len(members) == 1 else union_of(members, size_mm))
+    return out
+
+
+def union_of(parts: list[LumpEstimate], size_mm=None) -> LumpEstimate:
+    """One lump of overlapping parts, as a free-form region is reported (lumps.py): the outline of their union
+    on the tissue, its centroid and equal-area radius. Their sds are carried as if the parts moved
+    independently: the centroid moves by each part's centre move weighted by its share of the area, the area by
+    2πr·dr of each part. Its top is the shallowest part's; an edge profile belongs to no union, so none."""
+    polygons = [np.asarray(part.boundary_mm, dtype=float) for part in parts]
+    low = np.min([p.min(axis=0) for p in polygons], axis=0) - UNION_GRID_MM
+    high = np.max([p.max(axis=0) for p in polygons], axis=0) + UNION_GRID_MM
+    if size_mm is not None:
+        half = np.asarray(size_mm, dtype=float) / 2.0
+        low, high = np.maximum(low, -half), np.minimum(high, half)
+    xs = np.arange(low[0], high[0] + UNION_GRID_MM / 2, UNION_GRID_MM)
+    ys = np.arange(low[1], high[1] + UNION_GRID_MM / 2, UNION_GRID_MM)
+    gx, gy = np.meshgrid(xs, ys)
+    points = np.column_stack([gx.ravel(), gy.ravel()])
+    inside = np.zeros(len(points), dtype=bool)
+    for polygon in polygons:
+        inside |= inside_polygon(points, polygon)
+    area = max(np.count_nonzero(inside), 1) * UNION_GRID_MM ** 2
+    centre = points[inside].mean(axis=0) if inside.any() else polygons[0].mean(axis=0)
+    radius = math.sqrt(area / math.pi)
+    areas = np.array([math.pi * part.radius_mm ** 2 for part in parts])
+    centre_sd = math.sqrt(float(np.sum((areas / areas.sum()) ** 2 * [p.center_sd_mm ** 2 for p in parts])))
+    radius_sd = math.sqrt(sum((p.radius_mm * p.radius_sd_mm) ** 2 for p in parts)) / radius
+    outline = _outline(xs, ys, inside.reshape(gx.shape))
+    top = min((p for p in parts if p.depth_mm is not None), key=lambda p: p.depth_mm, default=None)
+    return LumpEstimate((float(centre[0]), float(centre[1])), radius, centre_sd, radius_sd, outline.tolist(),
+                        boundary_sd_mm=math.sqrt(float(np.mean([p.radius_sd_mm ** 2 for p in parts]))),
+                        cut_by_edge=any(p.cut_by_edge for p in parts),
+                        depth_mm=None if top is None else top.depth_mm, depth_sd_mm=None if top is None else top.depth_sd_mm)
+
+
+def inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Which points (n, 2) lie inside a closed polygon (its vertices, first repeated last): the even-odd rule,
+    a ray along +x crossing the sides."""
+    a, b = polygon[:-1], polygon[1:]
+    px, py = points[:, 0:1], points[:, 1:2]
+    spans = (a[:, 1] > py) != (b[:, 1] > py)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_cross = a[:, 0] + (py - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+    return (np.count_nonzero(spans & (px < x_cross), axis=1) % 2) == 1
+
+
+def _outline(xs: np.ndarray, ys: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """The closed outer outline of a region on a grid (its longest contour at half way between in and out)."""
+    z = np.pad(inside.astype(float), 1)
+    step = xs[1] - xs[0] if len(xs) > 1 else UNION_GRID_MM
+    lines = contourpy.contour_generator(np.concatenate([[xs[0] - step], xs, [xs[-1] + step]]),
+                                        np.concatenate([[ys[0] - step], ys, [ys[-1] + step]]), z).lines(0.5)
+    line = max(lines, key=len)
+    return line if np.array_equal(line[0], line[-1]) else np.vstack([line, line[:1]])
 
 
 def _with_depth(lump: LumpEstimate, params: np.ndarray, cov: np.ndarray) -> LumpEstimate:

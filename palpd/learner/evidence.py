@@ -341,20 +341,45 @@ def apart(family: shapes.Family, theta: np.ndarray) -> bool:
     discs or ellipses laid over one another to tile a stiff region are one region of a shape no lump of
     the family makes (the free-form map's to describe), not k lumps. Lumps that merely touch, or whose
     blurred edges overlap a little, are apart (two 5 mm discs 7 mm apart share 19 %)."""
+    return all(shared <= SHARED_AREA for _, _, shared in _shared_areas(family, theta))
+
+
+def regions(family: shapes.Family, theta: np.ndarray) -> list[list[int]]:
+    """The fit's lumps gathered into connected stiff regions, each a list of lump indices in order: lumps whose
+    50 % boundaries overlap at all are one region. A lump is what a surgeon would cut out, a connected stiff
+    region; two circles laid across a rounded rectangle are one region of that shape (they were counted two,
+    at weight 1.000), while lumps whose boundaries stay apart, however close, are two."""
+    parent = list(range(family.k))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    for j, m, shared in _shared_areas(family, theta):
+        if shared > 0.0:
+            parent[root(m)] = root(j)
+    groups: dict[int, list[int]] = {}
+    for i in range(family.k):
+        groups.setdefault(root(i), []).append(i)
+    return sorted(groups.values())
+
+
+def _shared_areas(family: shapes.Family, theta: np.ndarray) -> list[tuple[int, int, float]]:
+    """(j, m, the share of the smaller lump's area inside the other's 50 % boundary) for each pair j < m."""
     if family.k < 2:
-        return True
+        return []
     ellipse = family.kind == "ellipses"
     lumps = shapes.lumps_of(family, theta)
+    out = []
     for j, m in zip(*_pairs(family.k)):
         small, other = sorted((lumps[j], lumps[m]), key=lambda params: params[2])
         major, minor, angle = shapes.axes_and_angle(small, ellipse)
         c, s = math.cos(math.radians(angle)), math.sin(math.radians(angle))
         ex, ey = major * _UNIT_DISC[:, 0], minor * _UNIT_DISC[:, 1]
         points = np.column_stack([small[0] + c * ex - s * ey, small[1] + s * ex + c * ey])
-        inside_other = shapes.log_rho2(other, points, ellipse)[0] < 0.0
-        if inside_other.mean() > SHARED_AREA:
-            return False
-    return True
+        out.append((int(j), int(m), float((shapes.log_rho2(other, points, ellipse)[0] < 0.0).mean())))
+    return out
 
 
 def _sunflower(n: int) -> np.ndarray:

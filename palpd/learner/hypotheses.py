@@ -61,23 +61,30 @@ class Choice:
     weights: dict[str, float]  # every supported hypothesis's, apart or not: the rivals
     counts: dict = field(default_factory=dict)  # posterior of the lump count (int; "free-form": the map's own)
     shares: dict = field(default_factory=dict)  # each hypothesis that may be chosen (lumps apart): its share
+    regions: dict = field(default_factory=dict)  # each parametric hypothesis's count of connected stiff regions
 
     def as_dict(self) -> dict:
         return {"chosen": self.chosen, "weight": round(self.weight, 4), "runner_up": self.runner_up}
 
-    @staticmethod
-    def count_of(name: str | None):
-        """The lump count a hypothesis claims (shapes.Family.name): its K, 0 for `none` with or without a
-        soft region, "free-form" for the map, which counts its own regions; None for no hypothesis."""
-        if not name or name == "free-form":
-            return name or None
-        lumps = name.split("+")[0]
-        return 0 if lumps == "none" else int(lumps.split(":")[1])
+    def count_of(self, name: str | None):
+        """The lump count a hypothesis claims: its connected stiff regions (evidence.regions: lumps whose
+        boundaries overlap are one), else its family's K, 0 for `none` with or without a soft region,
+        "free-form" for the map, which counts its own regions; None for no hypothesis."""
+        return self.regions[name] if name in self.regions else lumps_claimed(name)
 
     @property
     def count_weight(self) -> float:
         """The posterior mass of the chosen hypothesis's count: all the hypotheses that agree on it."""
         return self.counts.get(self.count_of(self.chosen), self.weight)
+
+
+def lumps_claimed(name: str | None):
+    """The lumps a hypothesis's name says it draws (shapes.Family.name): K, 0 for `none` with or without a
+    soft region, "free-form" for the map; None for no hypothesis."""
+    if not name or name == "free-form":
+        return name or None
+    lumps = name.split("+")[0]
+    return 0 if lumps == "none" else int(lumps.split(":")[1])
 
 
 class Hypotheses:
@@ -439,11 +446,15 @@ class Hypotheses:
         chosen = separate[0]
         self.unfelt_centre = self._unfelt_centre(candidates[chosen], obs)
         share = sum(weights[m] for m in separate)
+        regions = {m: len(evidence.regions(self.fits[m].family, self.fits[m].theta)) for m in names
+                   if m != "free-form" and self.fits[m].family.k > 1}
         counts: dict = {}
         for m in separate:
-            counts[Choice.count_of(m)] = counts.get(Choice.count_of(m), 0.0) + weights[m] / share
+            count = regions.get(m, lumps_claimed(m))
+            counts[count] = counts.get(count, 0.0) + weights[m] / share
         shares = {m: weights[m] / share for m in separate}
-        return Choice(chosen, shares[chosen], separate[1] if len(separate) > 1 else None, weights, counts, shares)
+        return Choice(chosen, shares[chosen], separate[1] if len(separate) > 1 else None, weights, counts, shares,
+                      regions)
 
     def _unfelt_centre(self, chosen_log_evidence: float, obs: Observations) -> np.ndarray | None:
         """The centre of a lump no reading feels yet, in a hypothesis the evidence prefers to the chosen

@@ -65,7 +65,7 @@ class Learner(Decision):
         self.surprise_sd = 0.0  # how far the last reading fell from what the chosen fit predicted there
         self._fit_before = None  # the chosen fit before the last reading (decision._settled)
         self._settled_before = False  # whether the reading before the last settled the estimate (decision._settled)
-        self._chosen_before = None  # the chosen hypothesis's name before the last reading (decision._count_made)
+        self._count_before = None  # the chosen hypothesis's lump count before the last reading (decision._count_made)
         self._fitted_at = 0
         self._pass = None  # the pass of refits under way (many readings: one step per update)
         self._regions = []
@@ -87,14 +87,14 @@ class Learner(Decision):
             outcome = "fit" if _usable(stiffness_n_per_mm) else "rejected"
         value = stiffness_n_per_mm if outcome == "fit" else bound_n_per_mm
         fit_before = None if self.choice is None else self.chosen_fit()  # what the newest reading may move
-        chosen_before = None if self.choice is None else self.choice.chosen
+        count_before = None if self.choice is None else self.choice.count_of(self.choice.chosen)
         settled_before = self.choice is not None and self._moved_within_sds(fit_before)  # (it is the fit now)
         if not self.obs.add(xy, outcome, value, sd_n_per_mm if outcome == "fit" else 0.0):
             self.coverage.probed(xy)  # no reading, but looked at
             return
         self.coverage.add(xy)
         self._fit_before = fit_before
-        self._chosen_before = chosen_before
+        self._count_before = count_before
         self._settled_before = settled_before
         self.surprise_sd = self._surprise_of_last()
         own_sd = self.obs.sd[-1] if self.obs.kind[-1] == EXACT else CENSORED_SD
