@@ -147,7 +147,7 @@ def _verdict_line(report: dict) -> str:
     unfelt = None if report["verdict"] == "undetermined" else unfelt
     reach = "" if unfelt is None else f"; a lump under {unfelt:.1f} mm in radius could lie unfelt between the readings"
     if reach and report.get("strategy") == "active":  # the user's side of that trade, where the user meets it
-        reach += " (--coverage-mm reads closer)"
+        reach += " (a tighter --tolerance-mm or --coverage-mm reads closer)"
     return f"verdict: {text}{chosen}{reach}"
 
 
