@@ -148,7 +148,7 @@ def test_cli_active_scan_with_defaults_pins_the_paper_lump_and_says_which_model(
     # what "one lump" claims: none other at least this large, and the scan stops only once that is within reach
     unfelt = report["model"]["unfelt_radius_mm"]
     assert 0 < unfelt <= Settings().learner.coverage_mm
-    assert f"a lump under {unfelt:.1f} mm in radius could lie unfelt between the readings (--coverage-mm" in result.stdout
+    assert f"a lump under {unfelt:.1f} mm in radius could lie unfelt between the readings (a tighter --tolerance-mm or --coverage-mm" in result.stdout
     m = report["metrics"]
     assert m["lumps_found"] == 1 and m["false_lumps"] == 0
     assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5 and m["min_iou"] >= 0.9
