@@ -80,8 +80,10 @@ class Decision:
 
     def unfelt_area_mm2(self) -> float:
         """The expected area of lumps no reading has felt, under the priors' radius range and the settings'
-        expected count of lumps (coverage.Readings.unfelt_area_mm2)."""
-        return self.coverage.unfelt_area_mm2(self.settings.expected_lumps, self._unfelt_radii())
+        expected count of lumps (coverage.Readings.unfelt_area_mm2); once an update (the report and (b) ask)."""
+        if "unfelt" not in self._cache:
+            self._cache["unfelt"] = self.coverage.unfelt_area_mm2(self.settings.expected_lumps, self._unfelt_radii())
+        return self._cache["unfelt"]
 
     def _unfelt_radii(self) -> tuple[float, float]:
         return MIN_RADIUS_MM, MAX_RADIUS_FRACTION * max(self.size_mm)

@@ -99,7 +99,8 @@ def union_of(parts: list[LumpEstimate], size_mm=None) -> LumpEstimate:
 
 def inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     """Which points (n, 2) lie inside a closed polygon (its vertices, first repeated last): the even-odd rule,
-    a ray along +x crossing the sides."""
+    a ray along +x crossing the sides. (palpd.metrics asks matplotlib's Path, which the learner, running in
+    the daemon, does not import for this.)"""
     a, b = polygon[:-1], polygon[1:]
     px, py = points[:, 0:1], points[:, 1:2]
     spans = (a[:, 1] > py) != (b[:, 1] > py)

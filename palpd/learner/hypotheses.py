@@ -448,13 +448,13 @@ class Hypotheses:
         share = sum(weights[m] for m in separate)
         regions = {m: len(evidence.regions(self.fits[m].family, self.fits[m].theta)) for m in names
                    if m != "free-form" and self.fits[m].family.k > 1}
-        counts: dict = {}
-        for m in separate:
-            count = regions.get(m, lumps_claimed(m))
-            counts[count] = counts.get(count, 0.0) + weights[m] / share
         shares = {m: weights[m] / share for m in separate}
-        return Choice(chosen, shares[chosen], separate[1] if len(separate) > 1 else None, weights, counts, shares,
-                      regions)
+        choice = Choice(chosen, shares[chosen], separate[1] if len(separate) > 1 else None, weights, {}, shares,
+                        regions)
+        for m in separate:
+            count = choice.count_of(m)
+            choice.counts[count] = choice.counts.get(count, 0.0) + shares[m]
+        return choice
 
     def _unfelt_centre(self, chosen_log_evidence: float, obs: Observations) -> np.ndarray | None:
         """The centre of a lump no reading feels yet, in a hypothesis the evidence prefers to the chosen
