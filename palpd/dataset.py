@@ -7,8 +7,6 @@ few places the hand lingered and sparse elsewhere.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from palpd import strategies
@@ -75,5 +73,12 @@ def make_dataset(settings, scene, pattern: str, count: int, seed: int, progress=
 
 
 def label_tumor(xy_mm, truth_lumps: list[dict]) -> list[int]:
-    """1 where a point lies within a true lump's radius (the paper's registered trace), else 0."""
-    return [int(any(math.dist(xy, lump["center_mm"]) <= lump["radius_mm"] for lump in truth_lumps)) for xy in xy_mm]
+    """1 where a point lies within a true lump (the paper's registered trace; its outline where it has one: a 3-D
+    inclusion's footprint), else 0."""
+    from palpd.metrics import inside_truth
+
+    points = np.asarray(xy_mm, dtype=float).reshape(-1, 2)
+    inside = np.zeros(len(points), dtype=bool)
+    for lump in truth_lumps:
+        inside |= inside_truth(points, lump)
+    return inside.astype(int).tolist()

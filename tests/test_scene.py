@@ -286,6 +286,37 @@ def test_a_3d_scene_truth_is_each_stiff_inclusion_footprint_with_the_depth_of_it
     assert truth["depth_mm"] == 6.0 and truth["radius_mm"] == pytest.approx(math.sqrt(40 / math.pi))
 
 
+@pytest.mark.parametrize("body", [
+    dict(shape="cylinder", center_mm=(3, -2, 8), radius_mm=5, length_mm=15.7, angle_deg=30),
+    dict(shape="ellipsoid", center_mm=(14, -13, 7), semi_axes_mm=(7, 4.5, 3), angle_deg=30),
+    dict(shape="box", center_mm=(-4, 6, 6), size_mm=(4, 9, 2), angle_deg=-70),
+    dict(shape="sphere", center_mm=(1, 1, 6), radius_mm=4),
+])
+def test_a_3d_truth_is_scored_against_the_outline_the_body_shows_from_above(tmp_path, body):
+    """A rod's truth was a circle of its area: the 15.7 x 10 mm rod of paper-3d, found as a 16.8 x 10.1 mm
+    ellipse, scored IoU 0.70. Its truth now holds the outline of its widest horizontal cross-section: the points
+    inside it are those the body holds at its widest depth, and the outline scores itself IoU 1."""
+    import numpy as np
+
+    from drivers.sim.bodies import Inclusion
+    from palpd import metrics
+
+    inclusion = Inclusion(modulus_kpa=90, **body)
+    text = "".join(f"{k} = {list(v) if isinstance(v, tuple) else repr(v)}\n".replace("'", '"') for k, v in body.items())
+    scene = load_scene(scene_file(tmp_path, LAYER + "[[inclusion]]\n" + text + "modulus_kpa = 90\n"))
+    [truth] = metrics.scene_truth(scene)
+    outline = np.asarray(truth["boundary_mm"])
+    rng = np.random.default_rng(0)
+    points = rng.uniform(-12, 12, size=(8000, 2)) + np.asarray(body["center_mm"][:2])
+    widest = np.full(len(points), body["center_mm"][2])  # every shape here is widest at its centre's depth
+    held = inclusion.contains(points[:, 0], points[:, 1], widest)
+    inside = metrics.inside_truth(points, truth)
+    assert held.sum() > 100 and np.mean(inside == held) > 0.995  # an ellipse's polygon differs at its very edge
+    assert metrics.iou(outline.tolist(), truth) == pytest.approx(1.0)
+    area = 0.5 * abs(np.dot(outline[:, 0], np.roll(outline[:, 1], 1)) - np.dot(outline[:, 1], np.roll(outline[:, 0], 1)))
+    assert area == pytest.approx(math.pi * truth["radius_mm"] ** 2, rel=0.01)  # its radius: the circle as large
+
+
 def test_an_inclusion_holds_the_points_of_its_turned_shape():
     import numpy as np
 

@@ -227,14 +227,16 @@ def truth_lumps(scene: Scene) -> list[dict]:
 
 
 def _truth_inclusions(scene: Scene) -> list[dict]:
-    """Each inclusion stiffer than the layer: its centre, the radius of a circle as large as its widest
-    horizontal cross-section, and depth_mm, where its top lies below the surface."""
+    """Each inclusion stiffer than the layer: its centre, the outline of its widest horizontal cross-section
+    (boundary_mm) and the radius of a circle as large, and depth_mm, where its top lies below the surface."""
     from drivers.geometry import rotate_xy
 
+    turn = scene.placement.rotation_deg
     return [
         {
-            "center_mm": list(rotate_xy(body.center_mm[0], body.center_mm[1], scene.placement.rotation_deg)),
+            "center_mm": list(rotate_xy(body.center_mm[0], body.center_mm[1], turn)),
             "radius_mm": body.equivalent_radius_mm(),
+            "boundary_mm": [[round(v, 4) for v in rotate_xy(x, y, turn)] for x, y in body.footprint_mm()],
             "depth_mm": body.top_depth_mm(),
             "modulus_kpa": body.modulus_kpa,
             "shape": body.shape,
