@@ -52,6 +52,36 @@ def depth_lines(thickness_mm: float, fine_mm: float, growth: float = 1.5) -> np.
     return np.array(sorted(edges))
 
 
+# A hexahedron's corners by their offsets along (x, y, z), numbered as scikit-fem's MeshTet.init_tensor numbers
+# them, and its split into six tetrahedra around the diagonal from corner 0 to corner 7 (Kuhn's).
+CORNER_OFFSETS = ((0, 0, 0), (0, 1, 0), (1, 0, 0), (0, 0, 1), (1, 1, 0), (0, 1, 1), (1, 0, 1), (1, 1, 1))
+KUHN_TETRAHEDRA = ((0, 1, 5, 7), (0, 1, 4, 7), (0, 2, 4, 7), (0, 3, 5, 7), (0, 2, 6, 7), (0, 3, 6, 7))
+
+
+def mirrored_tensor_mesh(grid: Grid):
+    """Tetrahedra on the grid's hexahedra, each split along its diagonal, mirrored in every other hexahedron
+    along each axis: the mesh is then its own mirror image about every element face.
+
+    scikit-fem's MeshTet.init_tensor splits every hexahedron along the same diagonal, towards +x +y +z: the layer
+    felt that direction stiffer, and a sphere's bump over a 60 mm layer peaked 0.55 mm off its centre in x and
+    in y (a 3 mm sphere under the middle of a 20 mm layer); paper-3d's rod was found (8.0, -3.3) mm, where the
+    table's own bump was, 0.85 mm from the rod. Mirrored, the same sphere's bump lies within 0.15 mm of it."""
+    from skfem import MeshTet
+
+    xs, ys, zs = (np.sort(np.asarray(lines, dtype=float)) for lines in (grid.xs, grid.ys, grid.zs))
+    x, y, z = np.meshgrid(xs, ys, zs, indexing="ij")
+    points = np.vstack([x.ravel(), y.ravel(), z.ravel()])
+    i, j, k = (a.ravel() for a in np.meshgrid(*(np.arange(len(lines) - 1) for lines in (xs, ys, zs)), indexing="ij"))
+    flip = (i % 2, j % 2, k % 2)
+
+    def corner(c: int) -> np.ndarray:
+        dx, dy, dz = CORNER_OFFSETS[c]
+        return ((i + (dx ^ flip[0])) * len(ys) + (j + (dy ^ flip[1]))) * len(zs) + (k + (dz ^ flip[2]))
+
+    tetrahedra = np.hstack([np.vstack([corner(c) for c in tetrahedron]) for tetrahedron in KUHN_TETRAHEDRA])
+    return MeshTet(points, tetrahedra.astype(np.int32))
+
+
 class SurfaceCompliance:
     """Factorised layer; columns of the surface compliance (mm per N) on demand."""
 
@@ -60,9 +90,9 @@ class SurfaceCompliance:
         """modulus_kpa: a number or f(x, y, z) -> kPa at points (3, ...) in mm (inclusions). roller_sides: the
         four sides slide but do not move out (mirror planes: the layer goes on past them), else they are free."""
         from scipy.sparse.linalg import splu
-        from skfem import Basis, ElementTetP2, ElementVector, MeshTet
+        from skfem import Basis, ElementTetP2, ElementVector
 
-        mesh = MeshTet.init_tensor(grid.xs, grid.ys, grid.zs)
+        mesh = mirrored_tensor_mesh(grid)
         # strains of P2 are linear on a straight tetrahedron: order 2 integrates the stiffness exactly
         self.basis = Basis(mesh, ElementVector(ElementTetP2()), intorder=2)
         stiffness = self._assemble(modulus_kpa, poisson)

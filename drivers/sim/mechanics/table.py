@@ -22,7 +22,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-FORMAT_VERSION = 5  # bump when the table's meaning or the mesh recipe changes: old cache files are ignored
+FORMAT_VERSION = 6  # bump when the table's meaning or the mesh recipe changes: old cache files are ignored
 DEPTHS_MM = (0.5, 1.0, 2.0, 3.0, 4.0, 5.0)
 ELEMENT_MM = 4.0  # lateral element edge: P2 nodes, and so the table's grid, every 2 mm
 # The smallest tip the table resolves. Until the contact radius √(Rδ) spans the surface nodes' spacing the tip
