@@ -1061,3 +1061,20 @@ def test_the_expected_boundary_error_is_the_uncertain_area_over_the_boundary_s_l
     square = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 2.0], [0.0, 2.0]])
     assert _perimeter_mm(square) == pytest.approx(8.0)
     assert _perimeter_mm(square[:1]) == 0.0
+
+
+@hsettings(max_examples=150, deadline=None)
+@given(st.lists(st.tuples(st.integers(-3, 3), st.integers(-3, 3)), min_size=1, max_size=12), st.integers(1, 5))
+@example([(0, 0)] * 5 + [(1, 1)], 3)  # fewer distinct spots than groups: k-means++ divided by zero
+def test_grouping_readings_into_starts_warns_nothing_whatever_the_spots(spots, k):
+    """scipy's k-means warned on stderr of an empty group and, with spots repeated, of a division by zero: lines
+    a user saw in `palpd bench calibration`'s output and could do nothing about."""
+    from palpd.learner.hypotheses import _kmeans
+
+    points = np.asarray(spots, dtype=float)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        labels = _kmeans(points, k)
+    assert len(labels) == len(points) and 0 <= labels.min() and labels.max() < max(k, 1)
+    same_spot = (points[:, None] == points[None]).all(axis=2)
+    assert np.all(labels[:, None] == labels[None]) or not same_spot.all()  # one spot: one group

@@ -141,8 +141,9 @@ class Decision:
             return []
         fit = self.chosen_fit()
         if fit is not None:
-            parts = describe.parts_of(fit, self.supervised_tau_n_per_mm, self.size_mm)
-            if self.supervised_tau_n_per_mm is not None:
+            tau = self.supervised_tau_n_per_mm
+            parts = self._parts() if tau is None else describe.parts_of(fit, tau, self.size_mm)
+            if tau is not None:
                 parts = [(j, lump) for j, lump in parts if self._past_tau(lump)]
             return describe.regions_of(fit, parts, self.size_mm)
         exact = self.obs.exact
@@ -150,6 +151,13 @@ class Decision:
         lv = self._levels()
         stiff = lump_points(k, k * self.obs.sd[exact], lv)
         return find_lumps(self.free_form_map(lv), self.obs.xy[exact][stiff])
+
+    def _parts(self) -> list[tuple[int, LumpEstimate]]:
+        """Every lump of the chosen parametric fit as reported (describe.parts_of, no τ), once an update: the
+        lumps reported and the spots that pin them down (`_unpinned`) both read them."""
+        if "parts" not in self._cache:
+            self._cache["parts"] = describe.parts_of(self.chosen_fit(), None, self.size_mm)
+        return self._cache["parts"]
 
     def _past_tau(self, lump: LumpEstimate) -> bool:
         """Supervised: a lump is one only where a reading inside it is surely above the learned τ."""
@@ -397,7 +405,7 @@ class Decision:
         centre = coverage.unconfirmed_centre(fit, readings, spacing)
         if centre is not None:
             return centre
-        lumps = describe.lumps_of(fit, None, self.size_mm)  # every lump, in the fit's order (no τ filter)
+        lumps = [lump for _, lump in self._parts()]  # every lump, in the fit's order (no τ filter)
         unsure = np.array([_sds(lump) > self.settings.tolerance_mm for lump in lumps])
         edge = coverage.uncovered_edge(fit, readings, self.size_mm, spacing, unsure)
         return edge if edge is not None else coverage.unread_top(fit, readings, spacing)

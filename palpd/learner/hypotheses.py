@@ -538,9 +538,18 @@ def _kmeans(points: np.ndarray, k: int) -> np.ndarray:
     """Labels of k groups (k-means++, seeded: the same readings always group the same way)."""
     if k == 1:
         return np.zeros(len(points), dtype=int)
+    import warnings
+
     from scipy.cluster.vq import kmeans2
 
-    _, labels = kmeans2(points, k, minit="++", seed=0)
+    distinct, spot = np.unique(points, axis=0, return_inverse=True)
+    if len(distinct) <= k:  # a group per spot (k-means++ divides by zero when every spot is already a centre)
+        return spot.ravel()
+    # An empty group only means fewer starts; scipy warns of it on stderr, a line no user can act on (it
+    # leaked into `palpd bench calibration`'s table).
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="One of the clusters is empty", category=UserWarning)
+        _, labels = kmeans2(points, k, minit="++", seed=0)
     return labels
 
 
