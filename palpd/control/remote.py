@@ -62,7 +62,7 @@ def open_servo_bench(settings, scene, seed: int = 0, realtime: bool = False) -> 
     except BaseException:
         servo.close()
         raise
-    servo.period_s, servo.scheduling = info["period_s"], info["scheduling"]
+    servo.period_s, servo.scheduling, servo.realtime = info["period_s"], info["scheduling"], realtime
     return Bench(servo, RemoteClock(servo), info["frame"], info["tissue_size_mm"])
 
 
@@ -146,6 +146,7 @@ class RemoteServo:
         self.amplifiers_on = None
         self.period_s = 0.001
         self.scheduling = ""  # what the process got ("SCHED_FIFO 80"), said in the start-up log
+        self.realtime = False  # on the wall clock (else virtual time: the clock stands still between tasks)
         self._lock = threading.Lock()  # one request at a time (the daemon's worker and its command handlers)
         self._beat, self._beat_seen_at = -1, time.monotonic()
         self._closed = False

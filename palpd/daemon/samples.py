@@ -24,7 +24,7 @@ def raw_samples(ring_samples) -> list[dict]:
 
 REST_SAMPLES = 200  # the arm is at rest when its newest this many ticks (0.2 s at 1 kHz)...
 REST_MM = 0.05  # ...stay within this of each other
-NOTHING_TICKS_S = 0.5  # no tick for this long (virtual time stands still between tasks): nothing moves either
+NOTHING_TICKS_S = 0.5  # no tick for this long in virtual time (it stands still between tasks): nothing moves either
 SETTLE_LIMIT_S = 10.0  # the recording waits at most this long for the arm to come to rest
 
 
@@ -63,12 +63,15 @@ class SampleDrain:
     def stop(self) -> None:
         self.next_index = None
 
-    def at_rest(self, since_s: float) -> tuple[float, float, float] | None:
-        """Where the tip came to rest (the newest sample's position) once it has, else None. Also once no tick
-        came for NOTHING_TICKS_S, or SETTLE_LIMIT_S after since_s (monotonic): the recording must end."""
+    def at_rest(self, since_s: float, virtual_time: bool = True) -> tuple[float, float, float] | None:
+        """Where the tip came to rest (the newest sample's position) once it has, else None. Also, in virtual
+        time, once no tick came for NOTHING_TICKS_S (its clock stands still between tasks, and nothing moves),
+        and in any case SETTLE_LIMIT_S after since_s (monotonic): the recording must end. On the wall clock the
+        ticks never stop while the servo process lives; a gap is that process kept off a busy host's cores, and
+        the arm moves on after it: the recording was closed in such a gap with the arm still falling."""
         now = time.monotonic()
         newest = self.recent[-1][1] if self.recent else None
-        quiet = now - self.drained_at > NOTHING_TICKS_S and now - since_s > NOTHING_TICKS_S
+        quiet = virtual_time and now - self.drained_at > NOTHING_TICKS_S and now - since_s > NOTHING_TICKS_S
         if quiet or now - since_s > SETTLE_LIMIT_S:
             return tuple(newest) if newest is not None else (math.nan, math.nan, math.nan)
         if len(self.recent) < REST_SAMPLES:

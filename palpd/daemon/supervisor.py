@@ -334,7 +334,7 @@ class Supervisor(StorageFaults):
         self._settling_since = time.monotonic()
 
     def _close_when_at_rest(self) -> None:
-        tip = self.samples.at_rest(self._settling_since)
+        tip = self.samples.at_rest(self._settling_since, virtual_time=not self.bench.servo.realtime)
         if tip is None:
             return
         waited_s = time.monotonic() - self._settling_since
