@@ -42,7 +42,8 @@ def test_unknown_key_gets_nothing_and_an_observer_cannot_start_a_scan(tmp_path, 
     try:
         daemon.start()
         as_operator = daemon.dealer(client_keys(operator, server_public))
-        assert daemon.call("status", socket=as_operator)["state"] == "ready"
+        # the daemon's start-up (a servo process spawned, the bus bound) took over 20 s once on a busy host
+        assert daemon.call("status", socket=as_operator, timeout_s=60.0)["state"] == "ready"
         as_observer = daemon.dealer(client_keys(observer, server_public))
         assert daemon.call("status", socket=as_observer)["ok"]
         refused = daemon.call("scan.start", {"max_palpations": 4}, socket=as_observer)
