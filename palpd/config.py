@@ -186,10 +186,9 @@ class LearnerSettings(_Section):
     grid_points: Annotated[int, Field(ge=11, le=401)] = 121  # candidate grid, per side
     min_spacing_mm: NonNegative = 1.5
     coverage_mm: Positive = 18.0  # done only once every spot is this close to a reading: no lump left unfelt
-    # ...and every verdict only once every spot is this close (at most coverage_mm; the covering lattice's reach):
-    # a count claims the whole tissue, "two lumps" that no third lies beside them as "no lump" that none lies anywhere;
+    # ...and a `none` verdict only once every spot is this close (at most coverage_mm; the covering lattice's reach):
     # a sharp-edged lump is felt only a little beyond its radius (a 10 mm lump of sharpness 40 at 2 % of its height
-    # 11 mm from its centre), so a verdict rules out any other lump of 10 mm radius and wider. On a tissue larger than a 60 mm
+    # 11 mm from its centre), so `none` rules out lumps of 10 mm radius and wider. On a tissue larger than a 60 mm
     # square the reach widens, up to coverage_mm, until the covering takes no more points than there (16): `none`
     # in ~18 palpations on any tissue, ruling out a little less (80 x 80 mm: 14.25 mm); the verdict says how much
     none_coverage_mm: Positive = 11.0

@@ -23,11 +23,9 @@ def add_parser(subparsers):
                       help="...and the boundary's expected error is at most T mm: the expected misread area over "
                            "the boundary's length (active; default 0.5): looser stops sooner")
     scan.add_argument("--coverage-mm", type=float, metavar="MM",
-                      help="...and no spot is farther than MM from a reading, nor than the covering lattice's "
-                           "reach (learner.none_coverage_mm: 11 mm on a 60 mm square, wider on a larger tissue) "
-                           "(active; default 18): a lump felt over less than that could lie unfelt between the "
-                           "readings. Lower finds more small lumps and costs palpations "
-                           "(docs/explanation/scanning.md)")
+                      help="...and no spot is farther than MM from a reading (active; default 18): a lump felt over "
+                           "less than that could lie unfelt between the readings. Lower finds more small lumps "
+                           "and costs palpations (docs/explanation/scanning.md)")
     scan.add_argument("--seed", type=int, metavar="N")
     scan.add_argument("--train", metavar="FILE.csv",
                       help="labelled dataset (tumor column): learn the lump threshold from it (active strategy)")

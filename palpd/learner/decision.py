@@ -257,8 +257,7 @@ class Decision:
         """The spot farthest from every reading, when it is farther than `coverage_mm` (`none_reach_mm`,
         `none_coverage_mm` or wider on a larger tissue (design.none_reach), while the choice is `none`: "no
         lump" claims the whole tissue, and a sharp-edged lump is felt only within its radius): a lump there
-        whose felt footprint is narrower could not have shown yet. Lumps found are held to that covering
-        too, once all else holds (`_uncovered`).
+        whose felt footprint is narrower could not have shown yet.
 
         `none` also waits for a palpation near the tissue's centre, where a user places what they came to
         examine: the covering lattice of a square has its widest hole there (60 x 60 mm: 11 mm from
@@ -272,17 +271,6 @@ class Decision:
         if unexplored is None and self._centre_unprobed():
             return 0.0, 0.0
         return unexplored
-
-    def _uncovered(self) -> tuple[float, float] | None:
-        """With lumps chosen, the spot farthest from every reading when it is farther than the covering `none`
-        waits for (`none_reach_mm`): every count claims the whole tissue, "two lumps" that no third lies beside
-        them as much as "no lump" that none lies anywhere. Held only to `coverage_mm` (18 mm), random-0-26
-        stopped on its 8.6 mm lump at 18 palpations, a hole 17.7 mm wide beside it holding its 6.5 mm one; now
-        32 random scenes are all right (982 palpations instead of 941; the shipped scenes 802 instead of 783).
-        Asked once all else holds, as the other holes are: a lump found is pinned down first."""
-        if self.choice is None or self._no_lump_chosen():
-            return None  # `_unexplored` holds `none` to it
-        return self.coverage.farthest_beyond(min(self.settings.coverage_mm, self.none_reach_mm))
 
     def _centre_unprobed(self) -> bool:
         reach = CENTRE_REACH * self.none_reach_mm
@@ -454,7 +442,7 @@ class Decision:
             return "readings above the chosen model hint together at a lump no hypothesis has"
         if self._unfelt() is not None or self._rivals_unread_lump() is not None:
             return "a lump that a rival hypothesis draws holds no reading yet"
-        if stopping and (self._unexplored() is not None or self._uncovered() is not None):
+        if stopping and self._unexplored() is not None:
             return "a spot of the tissue is farther from every reading than a lump's felt footprint"
         if stopping and self._satellite_hole() is not None:
             return "a hole beside the lumps found together could hide another"
@@ -552,9 +540,6 @@ class Decision:
         decisive = self._decisive_spot() if stands else None
         if decisive is not None:  # all else holds: one reading where a rival as good disagrees most
             return float(decisive[0]), float(decisive[1])
-        uncovered = self._uncovered() if stands else None
-        if uncovered is not None:  # all else holds: the rest of the tissue covered as for `none`
-            return self._covering_spot(uncovered)
         hole = self._unfelt_hole() if stands else None
         if hole is not None:  # all else holds but for lumps a hole between the readings could hide
             return hole
