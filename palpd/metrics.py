@@ -33,17 +33,18 @@ def scene_truth(scene, min_contrast: float = 0.3) -> list[dict]:
 
     truth = truth_lumps(scene)
     if scene.tissue.map:
-        truth += map_regions(scene.tissue.map, scene.tissue.size_mm, min_contrast)
+        truth += map_regions(scene.tissue.map, scene.tissue.size_mm, min_contrast, scene.tissue.map_baseline)
     return truth
 
 
-def map_regions(path, size_mm, min_contrast: float) -> list[dict]:
+def map_regions(path, size_mm, min_contrast: float, baseline: float | None = None) -> list[dict]:
+    """The truth lumps of a measured map (a map of raw readings given its baseline: the tissue's map_baseline)."""
     from scipy import ndimage
     from scipy.interpolate import griddata
 
     from drivers.sim.scene import load_stiffness_map
 
-    rows = np.array(load_stiffness_map(path))
+    rows = np.array(load_stiffness_map(path, baseline))
     xs = np.arange(-size_mm[0] / 2, size_mm[0] / 2 + 1e-9, MAP_GRID_MM)
     ys = np.arange(-size_mm[1] / 2, size_mm[1] / 2 + 1e-9, MAP_GRID_MM)
     gx, gy = np.meshgrid(xs, ys)

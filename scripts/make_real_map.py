@@ -6,7 +6,8 @@ READINGS.csv has the columns x_mm, y_mm, reading (others ignored): each a probe'
 grid pressed to the same depth below the registered surface, as Garg et al. (CASE 2016) recorded a silicone
 phantom with a dVRK arm (760 readings, a 40 x 20 grid over about 58 x 20 mm).
 
-How a reading becomes stiffness: pressed to one depth, the force is the stiffness times that depth, and the
+How a reading becomes stiffness (drivers/sim/scene.py, stiffness_from_readings; a scene can read such a CSV
+itself, given tissue.map_baseline): pressed to one depth, the force is the stiffness times that depth, and the
 probe's raw value is the force plus the sensor's offset (its value at no force). So the felt stiffness is
 proportional to (reading - baseline); it is scaled so that the median reading reads as 0.12 N/mm, the shipped
 scenes' tissue. The offset is not in the data: the baseline is a stated assumption (8000, some 700 units under
@@ -18,19 +19,18 @@ from __future__ import annotations
 
 import argparse
 import csv
+import sys
 from pathlib import Path
 
 import numpy as np
 
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from drivers.sim.scene import stiffness_from_readings  # noqa: E402
+
 TISSUE_N_PER_MM = 0.12
-OUT = Path(__file__).resolve().parent.parent / "config" / "scenes" / "maps" / "garg-phantom.csv"
-
-
-def stiffness_from_readings(readings: np.ndarray, baseline: float) -> np.ndarray:
-    """Felt stiffness (N/mm) of readings taken at one press depth, the median reading at the tissue's."""
-    if baseline >= readings.min():
-        raise SystemExit(f"baseline {baseline:g} is not below the smallest reading {readings.min():g}")
-    return TISSUE_N_PER_MM * (readings - baseline) / (np.median(readings) - baseline)
+OUT = ROOT / "config" / "scenes" / "maps" / "garg-phantom.csv"
 
 
 def main() -> None:
@@ -42,7 +42,10 @@ def main() -> None:
     with args.readings.open(newline="") as handle:
         rows = list(csv.DictReader(handle))
     xy = np.array([(float(r["x_mm"]), float(r["y_mm"])) for r in rows])
-    k = stiffness_from_readings(np.array([float(r["reading"]) for r in rows]), args.baseline)
+    try:
+        k = np.array(stiffness_from_readings([float(r["reading"]) for r in rows], args.baseline, TISSUE_N_PER_MM))
+    except ValueError as exc:
+        raise SystemExit(str(exc)) from None
     with args.out.open("w") as out:
         out.write("x_mm,y_mm,stiffness_n_per_mm\n")
         for (x, y), value in zip(xy, k):

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import csv
 import math
+import statistics
 from pathlib import Path
 from typing import Annotated, Literal, Optional
 
@@ -38,6 +39,10 @@ class Tissue(_Strict):
     friction: Annotated[float, Field(ge=0.0, le=2.0)] = 0.0  # sliding (Coulomb) friction: lateral / normal force
     # the felt field from measured samples, a CSV x_mm,y_mm,stiffness_n_per_mm (path relative to the scene)
     map: Optional[str] = None
+    # the map holds a probe's raw readings instead (a CSV x_mm,y_mm,reading, every press to one depth): this is
+    # the probe's value at no force, and each reading is felt as stiffness_n_per_mm × (reading − baseline) /
+    # (median reading − baseline) (stiffness_from_readings)
+    map_baseline: Optional[FiniteFloat] = None
     thickness_mm: Optional[Annotated[float, Field(gt=0, le=200, allow_inf_nan=False)]] = None  # makes it 3-D
     modulus_kpa: Optional[Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)]] = None
     # 0.5 itself is incompressible, which a displacement formulation cannot compute
@@ -90,6 +95,8 @@ class Scene(_Strict):
     @model_validator(mode="after")
     def _one_kind_of_tissue(self):
         tissue, given = self.tissue, self.tissue.model_fields_set
+        if tissue.map_baseline is not None and tissue.map is None:
+            raise ValueError("tissue.map_baseline reads a map of raw readings: give tissue.map too")
         if not tissue.is_3d:
             for name in ("modulus_kpa", "poisson"):
                 if name in given:
@@ -100,7 +107,8 @@ class Scene(_Strict):
             return self
         if tissue.modulus_kpa is None:
             raise ValueError("a 3-D tissue (tissue.thickness_mm) needs tissue.modulus_kpa")
-        mixed = [name for name in ("stiffness_n_per_mm", "exponent", "damping_n_s_per_mm", "map") if name in given]
+        mixed = [name for name in ("stiffness_n_per_mm", "exponent", "damping_n_s_per_mm", "map", "map_baseline")
+                 if name in given]
         if mixed or self.lump:
             what = ", ".join(f"tissue.{n}" for n in mixed) or "[[lump]]"
             raise ValueError(f"{what} belong to a 2-D scene; a 3-D tissue is set by thickness_mm, modulus_kpa "
@@ -134,28 +142,35 @@ def load_scene(path: str | Path) -> Scene:
         raise SceneError(describe_validation_error(str(path), exc)) from None
     if scene.tissue.map is not None:
         map_path = (path.parent / scene.tissue.map)
-        rows = load_stiffness_map(map_path)  # validated now, so a bad map fails before the robot moves
-        _check_map_covers_tissue(map_path, rows, scene.tissue.size_mm)
+        map_path = path.parent / scene.tissue.map
         scene = scene.model_copy(update={"tissue": scene.tissue.model_copy(update={"map": str(map_path)})})
+        rows = map_rows(scene.tissue)  # validated now, so a bad map fails before the robot moves
+        _check_map_covers_tissue(map_path, rows, scene.tissue.size_mm)
     return scene
 
 
-def load_stiffness_map(path: str | Path) -> list[tuple[float, float, float]]:
-    """Rows (x_mm, y_mm, stiffness_n_per_mm) of a measured map CSV."""
+def map_rows(tissue: Tissue) -> list[tuple[float, float, float]]:
+    """The tissue's measured map as rows (x_mm, y_mm, stiffness_n_per_mm): as given, or felt from raw readings
+    (tissue.map_baseline)."""
+    return load_stiffness_map(tissue.map, tissue.map_baseline, tissue.stiffness_n_per_mm)
+
+
+def load_stiffness_map(path: str | Path, baseline: float | None = None,
+                       tissue_n_per_mm: float = 0.12) -> list[tuple[float, float, float]]:
+    """Rows (x_mm, y_mm, stiffness_n_per_mm) of a measured map CSV; with a baseline, of a CSV of raw readings
+    (x_mm, y_mm, reading), felt as stiffness by stiffness_from_readings."""
     path = Path(path)
+    value = "stiffness_n_per_mm" if baseline is None else "reading"
     try:
         # utf-8-sig: a spreadsheet's CSV export starts with a byte-order mark, which would hide the first column
         with path.open(newline="", encoding="utf-8-sig") as handle:
             reader = csv.DictReader(handle)
             reader.fieldnames = [name.strip() for name in reader.fieldnames or []]
-            missing = {"x_mm", "y_mm", "stiffness_n_per_mm"} - set(reader.fieldnames or [])
+            missing = {"x_mm", "y_mm", value} - set(reader.fieldnames or [])
             if missing:
-                # what the first line holds instead: a semicolon export, numbers with no header, nothing at all
-                header = ",".join(reader.fieldnames)[:60]
-                found = f"its first line reads {header!r}" if reader.fieldnames else "it is empty"
-                raise SceneError(f"{path}: missing column(s) {', '.join(sorted(missing))} ({found}; the map is "
-                                 f"comma-separated with the header x_mm,y_mm,stiffness_n_per_mm)")
-            rows = [_map_row(path, n + 2, row) for n, row in enumerate(reader)]
+                raise SceneError(f"{path}: missing column(s) {', '.join(sorted(missing))} "
+                                 f"({_what_the_header_says(reader.fieldnames, value)})")
+            rows = [_map_row(path, n + 2, row, value) for n, row in enumerate(reader)]
     except OSError as exc:
         raise SceneError(f"{path}: cannot read stiffness map: {exc.strerror}") from None
     except (UnicodeDecodeError, csv.Error) as exc:
@@ -164,7 +179,39 @@ def load_stiffness_map(path: str | Path) -> list[tuple[float, float, float]]:
         raise SceneError(f"{path}: a stiffness map needs at least 4 points, found {len(rows)}")
     if _on_one_line(rows):
         raise SceneError(f"{path}: the map's points lie on one line; they must spread over the tissue")
-    return rows
+    if baseline is None:
+        return rows
+    try:
+        felt = stiffness_from_readings([r[2] for r in rows], baseline, tissue_n_per_mm)
+    except ValueError as exc:
+        raise SceneError(f"{path}: tissue.map_baseline: {exc}") from None
+    return [(x, y, k) for (x, y, _), k in zip(rows, felt)]
+
+
+def _what_the_header_says(fieldnames: list[str], value: str) -> str:
+    """What the first line holds instead: a semicolon export, numbers with no header, nothing at all; or the
+    other kind of map (raw readings without tissue.map_baseline, or stiffness with it)."""
+    if fieldnames and value == "stiffness_n_per_mm" and "reading" in fieldnames:
+        return "it holds raw readings: set tissue.map_baseline to the probe's value at no force"
+    if fieldnames and value == "reading" and "stiffness_n_per_mm" in fieldnames:
+        return "it holds stiffness already: leave tissue.map_baseline out"
+    found = f"its first line reads {','.join(fieldnames)[:60]!r}" if fieldnames else "it is empty"
+    return f"{found}; the map is comma-separated with the header x_mm,y_mm,{value}"
+
+
+def stiffness_from_readings(readings, baseline: float, tissue_n_per_mm: float) -> list[float]:
+    """The felt stiffness (N/mm) of raw readings, every press to one depth: there the force is the stiffness
+    times that depth, and a raw reading is that force (in the probe's units) plus the probe's value at no
+    force, the baseline. So stiffness is in proportion to reading − baseline; the depth and the units are
+    not in the data, so the scale is set by the tissue: the median reading is felt as `tissue_n_per_mm`.
+    Each reading is kept as read, its scatter included. ValueError if a reading is at or under the baseline
+    (no force: no stiffness to feel)."""
+    lowest = min(readings)
+    if baseline >= lowest:
+        raise ValueError(f"the baseline {baseline:g} is not below the smallest reading {lowest:g} (the baseline is "
+                         f"the probe's value at no force; every press pushed harder)")
+    scale = tissue_n_per_mm / (statistics.median(readings) - baseline)
+    return [scale * (reading - baseline) for reading in readings]
 
 
 MIN_MAP_COVER = 0.5  # of the tissue's area: a map over less is most likely in another frame or unit
@@ -197,12 +244,12 @@ def _on_one_line(rows: list[tuple[float, float, float]]) -> bool:
     return all(abs(dx * (y - y0) - dy * (x - x0)) <= 1e-9 * length * length for x, y, _ in rows)
 
 
-def _map_row(path: Path, line: int, row: dict) -> tuple[float, float, float]:
+def _map_row(path: Path, line: int, row: dict, value: str) -> tuple[float, float, float]:
     try:
-        x, y, k = (float(row[c]) for c in ("x_mm", "y_mm", "stiffness_n_per_mm"))
+        x, y, k = (float(row[c]) for c in ("x_mm", "y_mm", value))
     except (TypeError, ValueError):
-        raise SceneError(f"{path}:{line}: x_mm, y_mm and stiffness_n_per_mm must be numbers") from None
-    if not all(map(math.isfinite, (x, y, k))) or k <= 0:
+        raise SceneError(f"{path}:{line}: x_mm, y_mm and {value} must be numbers") from None
+    if not all(map(math.isfinite, (x, y, k))) or (k <= 0 and value == "stiffness_n_per_mm"):
         raise SceneError(f"{path}:{line}: values must be finite and the stiffness positive")
     return x, y, k
 

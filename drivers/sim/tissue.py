@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from drivers.sim.scene import Scene, load_stiffness_map
+from drivers.sim.scene import Scene, map_rows
 
 MAP_GRID_MM = 0.5
 
@@ -29,7 +29,7 @@ class StiffnessField:
             (l.center_mm[0], l.center_mm[1], l.radius_mm, lump_sharpness(l.radius_mm, l.depth_mm), l.stiffness_n_per_mm)
             for l in scene.lump
         ]
-        self._map = _GridMap(load_stiffness_map(scene.tissue.map), scene.tissue.size_mm) if scene.tissue.map else None
+        self._map = _GridMap(map_rows(scene.tissue), scene.tissue.size_mm) if scene.tissue.map else None
 
     def background_at(self, x_mm: float, y_mm: float) -> float:
         return self._map.value(x_mm, y_mm) if self._map else self.background_n_per_mm
