@@ -1,6 +1,6 @@
 """Active scans with default settings on every scene in config/scenes/ (or the ones named), as a table.
 
-    .venv/bin/python scripts/active_scenes.py [--seed N | --seeds 0,1,2] [--raster-too] [SCENE ...]
+    .venv/bin/python scripts/active_scenes.py [--seed N | --seeds 0,1,2] [--raster-too] [SCENE | FILE.toml ...]
     .venv/bin/python scripts/active_scenes.py --random N [--random-seed S] [--raster-too]
     .venv/bin/python scripts/active_scenes.py --varied N [--random-seed S] [--raster-too]
     .venv/bin/python scripts/active_scenes.py --soft N [--random-seed S] [--raster-too]
@@ -30,7 +30,7 @@ from palpd.threads import pin_blas_to_one_thread
 
 pin_blas_to_one_thread()
 
-from drivers.sim.scene import Scene, load_scene  # noqa: E402
+from drivers.sim.scene import Scene, SceneError, load_scene  # noqa: E402
 from palpd import metrics  # noqa: E402
 from palpd.bench import open_simulated_bench  # noqa: E402
 from palpd.config import Settings, load_settings  # noqa: E402
@@ -111,7 +111,8 @@ def main() -> int:
         return sweep(names, [int(s) for s in args.seeds.split(",")])
     print(HEADER)
     for name in names:
-        scene = load_scene(SCENES / f"{name}.toml")
+        path = Path(name) if name.endswith(".toml") else SCENES / f"{name}.toml"  # a scene file, or a shipped name
+        name, scene = path.stem, load_scene(path)
         report, m = scan(scene, "active", BASE[0].learner.max_palpations, args.seed)
         print(row(name, report, m), flush=True)
         if args.raster_too:
@@ -160,4 +161,7 @@ def tried_beyond(scenes: list[Scene], raster_too: bool) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except SceneError as exc:  # a scene named that does not load: one line, as `palpd scan` says it
+        sys.exit(f"active_scenes.py: {exc}")

@@ -1078,3 +1078,21 @@ def test_grouping_readings_into_starts_warns_nothing_whatever_the_spots(spots, k
     assert len(labels) == len(points) and 0 <= labels.min() and labels.max() < max(k, 1)
     same_spot = (points[:, None] == points[None]).all(axis=2)
     assert np.all(labels[:, None] == labels[None]) or not same_spot.all()  # one spot: one group
+
+
+@pytest.mark.parametrize("regions, counted_with_one_lump", [(1, True), (2, False)])
+def test_the_free_form_map_weighs_for_the_count_of_its_regions(regions, counted_with_one_lump):
+    """The posterior of the count sums every hypothesis that claims as many lumps, the free-form map by its
+    regions: a band across the tissue, read as one ellipse and as the map's one region by turns, had each
+    reading "change the count" and ended `undetermined` at the budget with its boundary at IoU 0.96."""
+    centre, radius = np.array([3.0, -2.0]), 8.0
+    lump = lambda p: 0.12 + 0.4 / (1.0 + (math.dist(p, centre) / radius) ** 8)  # noqa: E731
+    obs = readings(lump, lattice() + [tuple(centre), tuple(centre + (radius, 0.0))])
+    hypotheses = Hypotheses((60.0, 60.0), 0.3, 0.01)
+    hypotheses.update(obs, [], math.log(0.12))
+    best = max(fit.log_evidence for fit in hypotheses.fits.values() if fit.supported)
+    choice = hypotheses.choice(best, obs, regions)  # the map as likely as the best parametric hypothesis
+    one_lump = sum(share for name, share in choice.shares.items() if name != "free-form" and choice.count_of(name) == 1)
+    assert choice.count_of("free-form") == regions and 0.3 < choice.shares["free-form"] < 0.7, choice
+    assert choice.counts[1] == pytest.approx(one_lump + (choice.shares["free-form"] if counted_with_one_lump else 0.0))
+    assert sum(choice.counts.values()) == pytest.approx(1.0)

@@ -59,17 +59,17 @@ class Choice:
     weight: float  # its share among the hypotheses whose lumps are apart (what may be chosen)
     runner_up: str | None  # the next of those
     weights: dict[str, float]  # every supported hypothesis's, apart or not: the rivals
-    counts: dict = field(default_factory=dict)  # posterior of the lump count (int; "free-form": the map's own)
+    counts: dict = field(default_factory=dict)  # posterior of the lump count (int)
     shares: dict = field(default_factory=dict)  # each hypothesis that may be chosen (lumps apart): its share
-    regions: dict = field(default_factory=dict)  # each parametric hypothesis's count of connected stiff regions
+    regions: dict = field(default_factory=dict)  # each hypothesis's count of connected stiff regions (k > 1, free-form)
 
     def as_dict(self) -> dict:
         return {"chosen": self.chosen, "weight": round(self.weight, 4), "runner_up": self.runner_up}
 
     def count_of(self, name: str | None):
         """The lump count a hypothesis claims: its connected stiff regions (evidence.regions: lumps whose
-        boundaries overlap are one), else its family's K, 0 for `none` with or without a soft region,
-        "free-form" for the map, which counts its own regions; None for no hypothesis."""
+        boundaries overlap are one; the free-form map's backed regions, lumps.py), else its family's K, 0 for
+        `none` with or without a soft region; None for no hypothesis."""
         return self.regions[name] if name in self.regions else lumps_claimed(name)
 
     @property
@@ -416,10 +416,11 @@ class Hypotheses:
         return starts
 
     # -- the choice -------------------------------------------------------------------------------
-    def choice(self, free_form_log_evidence: float | None, obs: Observations) -> Choice:
-        """Posterior weights of the supported hypotheses (and the free-form map's, when it has a region),
-        each parametric one's evidence checked against its posterior (posterior.py) from the most
-        likely down, until the rest could not weigh anything whatever their check says.
+    def choice(self, free_form_log_evidence: float | None, obs: Observations, free_form_regions: int = 0) -> Choice:
+        """Posterior weights of the supported hypotheses (and the free-form map's, when it has a region: it
+        claims as many lumps as it has `free_form_regions`), each parametric one's evidence checked against its
+        posterior (posterior.py) from the most likely down, until the rest could not weigh anything whatever
+        their check says.
 
         The chosen one is the most likely whose lumps are apart (evidence.apart), its weight its share
         among those: lumps laid over one another to tile a stiff region are no count of lumps (a stiff
@@ -446,8 +447,13 @@ class Hypotheses:
         chosen = separate[0]
         self.unfelt_centre = self._unfelt_centre(candidates[chosen], obs)
         share = sum(weights[m] for m in separate)
+        # The posterior of the count sums every hypothesis that claims as many lumps, the free-form map too: a
+        # band across the tissue, read as one ellipse and as the map's one region by turns, had each reading
+        # "change the count" and ended `undetermined` at the budget, its boundary at IoU 0.96.
         regions = {m: len(evidence.regions(self.fits[m].family, self.fits[m].theta)) for m in names
                    if m != "free-form" and self.fits[m].family.k > 1}
+        if "free-form" in candidates:
+            regions["free-form"] = free_form_regions
         shares = {m: weights[m] / share for m in separate}
         choice = Choice(chosen, shares[chosen], separate[1] if len(separate) > 1 else None, weights, {}, shares,
                         regions)

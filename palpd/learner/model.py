@@ -152,7 +152,9 @@ class Learner(Decision):
             if n % max(1, n // REFITS_PER_DOUBLING) == 0 and next(self._pass or iter(()), None) is None:
                 self._pass = self.hypotheses.refits(self.obs, self._find_regions(), self._tissue_log(), LIGHT_STARTS)
                 next(self._pass)
-        self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None, self.obs)
+        # (the free-form map's regions as last found: every update while readings are few, then at each pass)
+        self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None, self.obs,
+                                             len(self._regions))
 
     def _tissue_log(self) -> float:
         return math.log(self._levels().tissue_n_per_mm)
