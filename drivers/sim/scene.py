@@ -141,7 +141,6 @@ def load_scene(path: str | Path) -> Scene:
     except ValidationError as exc:
         raise SceneError(describe_validation_error(str(path), exc)) from None
     if scene.tissue.map is not None:
-        map_path = (path.parent / scene.tissue.map)
         map_path = path.parent / scene.tissue.map
         scene = scene.model_copy(update={"tissue": scene.tissue.model_copy(update={"map": str(map_path)})})
         rows = map_rows(scene.tissue)  # validated now, so a bad map fails before the robot moves
