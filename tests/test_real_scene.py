@@ -48,7 +48,7 @@ def test_a_scene_reads_a_probes_raw_readings_as_the_shipped_real_map_felt_them(t
 @pytest.mark.parametrize("baseline, extra, message", [
     ("", "", r"readings\.csv: missing column\(s\) stiffness_n_per_mm \(it holds raw readings: set tissue\.map_baseline"),
     ("map_baseline = 9000\n", "", r"readings\.csv: tissue\.map_baseline: the baseline 9000 is not below the smallest "
-                                  r"reading 8711\.41"),
+                                  r"reading 8711\.41 \(34 of 760 readings at or under it;.*a press that never touched\); the lowest is on line 648 \(x 20\.077, y 7\.576 mm\)"),
     ("map_baseline = nan\n", "", r"map_baseline"),
     ("map_baseline = 8000\n", "thickness_mm = 20\nmodulus_kpa = 15\n", r"tissue\.map.* belong to a 2-D scene"),
 ], ids=["no-baseline", "baseline-too-high", "nan", "in-3-d"])

@@ -183,7 +183,12 @@ def load_stiffness_map(path: str | Path, baseline: float | None = None,
     try:
         felt = stiffness_from_readings([r[2] for r in rows], baseline, tissue_n_per_mm)
     except ValueError as exc:
-        raise SceneError(f"{path}: tissue.map_baseline: {exc}") from None
+        # which reading: one press that never touched (a real dVRK file starts with one) is the usual cause,
+        # and the user's fix is to drop that line, not to move the baseline under it
+        lowest = min(range(len(rows)), key=lambda i: rows[i][2])
+        x, y, _ = rows[lowest]
+        raise SceneError(f"{path}: tissue.map_baseline: {exc}; the lowest is on line {lowest + 2} "
+                         f"(x {x:g}, y {y:g} mm)") from None
     return [(x, y, k) for (x, y, _), k in zip(rows, felt)]
 
 
@@ -207,8 +212,10 @@ def stiffness_from_readings(readings, baseline: float, tissue_n_per_mm: float) -
     (no force: no stiffness to feel)."""
     lowest = min(readings)
     if baseline >= lowest:
-        raise ValueError(f"the baseline {baseline:g} is not below the smallest reading {lowest:g} (the baseline is "
-                         f"the probe's value at no force; every press pushed harder)")
+        under = sum(reading <= baseline for reading in readings)
+        raise ValueError(f"the baseline {baseline:g} is not below the smallest reading {lowest:g} ({under} of "
+                         f"{len(readings)} readings at or under it; the baseline is the probe's value at no force, "
+                         f"and every press pushed harder: a reading under it is a press that never touched)")
     scale = tissue_n_per_mm / (statistics.median(readings) - baseline)
     return [scale * (reading - baseline) for reading in readings]
 
