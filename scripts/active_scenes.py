@@ -111,7 +111,7 @@ def main() -> int:
         return sweep(names, [int(s) for s in args.seeds.split(",")])
     print(HEADER)
     for name in names:
-        path = Path(name) if name.endswith(".toml") else SCENES / f"{name}.toml"  # a scene file, or a shipped name
+        path = scene_path(name)
         name, scene = path.stem, load_scene(path)
         report, m = scan(scene, "active", BASE[0].learner.max_palpations, args.seed)
         print(row(name, report, m), flush=True)
@@ -121,11 +121,17 @@ def main() -> int:
     return 0
 
 
+def scene_path(name: str) -> Path:
+    """A scene file, or a shipped scene's name."""
+    return Path(name) if name.endswith(".toml") else SCENES / f"{name}.toml"
+
+
 def sweep(names: list[str], seeds: list[int]) -> int:
     print(HEADER)
     rows = []
     for name in names:
-        scene = load_scene(SCENES / f"{name}.toml")
+        path = scene_path(name)
+        name, scene = path.stem, load_scene(path)
         runs = [scan(scene, "active", BASE[0].learner.max_palpations, seed) for seed in seeds]
         for seed, (report, m) in zip(seeds, runs):
             print(row(f"{name} (seed {seed})", report, m), flush=True)
