@@ -66,6 +66,10 @@ def test_bad_map_names_file_and_line(tmp_path):
     (tmp_path / "m.csv").write_text("x_mm,y_mm,stiffness_n_per_mm\n0,0,0.1\n1,0,abc\n")
     with pytest.raises(SceneError, match=r"m\.csv:3: "):
         load_scene(scene_file(tmp_path, 'name = "m"\n[tissue]\nmap = "m.csv"\n'))
+    # the file's own line, blank lines counted (the CSV reader skips them)
+    (tmp_path / "m.csv").write_text("x_mm,y_mm,stiffness_n_per_mm\n0,0,0.1\n\n\n1,0,abc\n")
+    with pytest.raises(SceneError, match=r"m\.csv:5: "):
+        load_scene(scene_file(tmp_path, 'name = "m"\n[tissue]\nmap = "m.csv"\n'))
     with pytest.raises(SceneError, match="cannot read stiffness map"):
         load_scene(scene_file(tmp_path, 'name = "m"\n[tissue]\nmap = "absent.csv"\n'))
 

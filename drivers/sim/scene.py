@@ -169,7 +169,9 @@ def load_stiffness_map(path: str | Path, baseline: float | None = None,
             if missing:
                 raise SceneError(f"{path}: missing column(s) {', '.join(sorted(missing))} "
                                  f"({_what_the_header_says(reader.fieldnames, value)})")
-            rows = [_map_row(path, n + 2, row, value) for n, row in enumerate(reader)]
+            # reader.line_num, not a count of rows: DictReader skips blank lines, and a line named must be the file's
+            numbered = [(reader.line_num, _map_row(path, reader.line_num, row, value)) for row in reader]
+            lines, rows = [n for n, _ in numbered], [r for _, r in numbered]
     except OSError as exc:
         raise SceneError(f"{path}: cannot read stiffness map: {exc.strerror}") from None
     except (UnicodeDecodeError, csv.Error) as exc:
@@ -187,7 +189,7 @@ def load_stiffness_map(path: str | Path, baseline: float | None = None,
         # and the user's fix is to drop that line, not to move the baseline under it
         lowest = min(range(len(rows)), key=lambda i: rows[i][2])
         x, y, _ = rows[lowest]
-        raise SceneError(f"{path}: tissue.map_baseline: {exc}; the lowest is on line {lowest + 2} "
+        raise SceneError(f"{path}: tissue.map_baseline: {exc}; the lowest is on line {lines[lowest]} "
                          f"(x {x:g}, y {y:g} mm)") from None
     return [(x, y, k) for (x, y, _), k in zip(rows, felt)]
 
