@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from pathlib import Path
 
 from palpd.threads import pin_blas_to_one_thread
 
@@ -30,6 +31,7 @@ pin_blas_to_one_thread()
 import numpy as np  # noqa: E402
 from scipy.special import logsumexp, ndtr, ndtri  # noqa: E402
 
+from palpd.learner.evidence import _gaussian_prior_norm  # noqa: E402
 from palpd.learner.likelihood import log_likelihood, noise_sd_ml, residuals  # noqa: E402
 from palpd.learner.observations import EXACT, Observations  # noqa: E402
 from palpd.learner.priors import LEVEL_SD, MAX_CONTRAST, SLOPE_SD, Priors  # noqa: E402
@@ -37,7 +39,8 @@ from palpd.learner.solver import levenberg_marquardt  # noqa: E402
 from palpd.learner.threshold import tissue_level  # noqa: E402
 
 LOG_2PI = math.log(2.0 * math.pi)
-BACKGROUND_NORM = math.log(LEVEL_SD) + 2.0 * math.log(SLOPE_SD) + 1.5 * LOG_2PI  # the three Gaussian priors' own
+# the background's three Gaussian priors' normalising constants, as the parametric fits' evidence counts them
+BACKGROUND_NORM = 0.5 * _gaussian_prior_norm(None)
 LENGTHS_MM = (4.0, 7.0, 10.0, 14.0)
 SIGNAL_SDS = (4.0, 8.0, 16.0)
 FAR_MEANS = (-0.5, -1.0, -2.0)  # m: far from every reading P(lump) ≈ Φ(m)
@@ -127,7 +130,7 @@ def main() -> int:
     parser.add_argument("--budget", type=int, default=40)
     parser.add_argument("--max-contrast", type=float, default=MAX_CONTRAST)
     args = parser.parse_args()
-    sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
     from active_scenes import scene_path
 
     from drivers.sim.scene import load_scene
