@@ -30,6 +30,42 @@ def test_lumps_whose_boundaries_overlap_are_one_region(kind, lumps, regions):
     assert evidence.regions(family, theta) == regions
 
 
+def _cov(family: shapes.Family, centre_sd: float, log_radius_sd: float) -> np.ndarray:
+    """A diagonal covariance: each lump's centre and log radius at these sds, the rest pinned."""
+    var = np.full(family.size, 1e-12)
+    for j in range(family.k):
+        start = family.lump_slice(j).start
+        var[start:start + 2] = centre_sd**2
+        var[start + 2] = log_radius_sd**2
+    return np.diag(var)
+
+
+def test_lumps_whose_boundaries_nearly_meet_are_one_region_or_two_by_their_sds():
+    """The count over the parameters' posterior, not at the mode: the fit a triangle's active scan ended on (a
+    disc and a small one in its corner, their boundaries 0.45 mm apart) was counted two at weight 1.000."""
+    family, theta = _theta("circles", (0, 0, 5), (10.45, 0, 5))
+    unsure = evidence.region_counts(family, theta, _cov(family, 0.5, 0.03))
+    assert set(unsure) == {1, 2} and min(unsure.values()) > 0.1 and sum(unsure.values()) == pytest.approx(1.0)
+    assert evidence.region_counts(family, theta, _cov(family, 0.5, 0.03)) == unsure  # the same readings, the same answer
+    assert evidence.region_counts(family, theta, _cov(family, 0.01, 0.001)) == {2: 1.0}  # sure: apart
+    family, theta = _theta("circles", (0, 0, 5), (9.5, 0, 5))
+    assert evidence.region_counts(family, theta, _cov(family, 0.01, 0.001)) == {1: 1.0}  # sure: overlapping
+
+
+@hsettings(max_examples=40, deadline=None)
+@given(kind=st.sampled_from(["circles", "ellipses"]),
+       lumps=st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20), st.floats(1.0, 8.0)), min_size=2, max_size=4),
+       centre_sd=st.sampled_from([1e-4, 0.3, 3.0]))
+def test_the_count_s_posterior_is_a_distribution_over_counts_that_agrees_with_the_mode_when_sure(kind, lumps,
+                                                                                              centre_sd):
+    family, theta = _theta(kind, *lumps)
+    counts = evidence.region_counts(family, theta, _cov(family, centre_sd, centre_sd / 10.0))
+    assert sum(counts.values()) == pytest.approx(1.0) and all(1 <= n <= len(lumps) for n in counts)
+    mode = len(evidence.regions(family, theta))
+    if centre_sd == 1e-4:  # boundaries sure to 0.4 µm: only a pair meeting that closely could go either way
+        assert counts.get(mode, 0.0) >= 0.5
+
+
 def test_a_hypothesis_counts_its_regions_and_the_count_s_posterior_gathers_them():
     """Two circles laid across one rounded rectangle claim one lump, and weigh for the count of one with
     the ellipse that draws it whole."""

@@ -171,7 +171,8 @@ class Decision:
         """The stop rule. Stop when all three hold:
 
         (a) The count is decided. The posterior mass of the lump count, summed over every hypothesis that
-            claims it (hypotheses.Choice.count_weight), is at least `confidence`, on enough readings at
+            claims it, each over its own parameters' posterior (lumps that nearly meet may be one region or
+            two: evidence.region_counts; hypotheses.Choice.count_weight), is at least `confidence`, on enough readings at
             distinct spots, and the newest reading did not just change it (`_count_made`). That mass is
             over the lumps the hypotheses draw, so it speaks for the count only where a lump would have
             been felt: no lump could hide where nothing was read, no reading hints at a lump no hypothesis

@@ -41,6 +41,8 @@ SUPPORT_SIGMA = 3.0
 ADEQUATE_NOISE = 2.0  # σ_w beyond this multiple of the floor: the model misses something (decision.py)
 OVERLAP_MM = 0.25  # softness of the rule that lumps do not sit inside one another
 SHARED_AREA = 0.2  # two lumps sharing more of the smaller's area are one region (`apart`)
+SURE_SDS = 4.0  # a pair of lumps this many sds apart (or overlapping) is left to its mode's answer
+COUNT_DRAWS = 64  # draws of the parameters for a count whose pairs are unsure
 HOPELESS = 30.0  # nats: a start this far below the height a start before it reached is dropped (after GIVE_UP_AFTER steps)
 GIVE_UP_AFTER = 8
 RIDGE_NATS = 0.5  # a mode this little below the chosen one is as likely as the points 1 sd from it
@@ -349,18 +351,74 @@ def regions(family: shapes.Family, theta: np.ndarray) -> list[list[int]]:
     50 % boundaries overlap at all are one region. A lump is what a surgeon would cut out, a connected stiff
     region; two circles laid across a rounded rectangle are one region of that shape (they were counted two,
     at weight 1.000), while lumps whose boundaries stay apart, however close, are two."""
-    parent = list(range(family.k))
+    return _components(family.k, [(j, m) for j, m, shared in _shared_areas(family, theta) if shared > 0.0])
+
+
+def region_counts(family: shapes.Family, theta: np.ndarray, cov: np.ndarray) -> dict[int, float]:
+    """The posterior of the fit's count of connected regions (`regions`) over its parameters' posterior
+    N(theta, cov), not at the mode alone: two lumps whose boundaries nearly meet are one region or two by
+    less than their boundaries' sds (a triangle read as a disc and a small one in its corner, 0.45 mm apart,
+    was counted two at weight 1.000). Pairs whose boundaries are surely apart or surely overlapping (by
+    SURE_SDS sds of their centres and sizes) keep their mode's answer; the rest are drawn COUNT_DRAWS times
+    (a fixed seed: the same readings give the same answer) and the counts of the draws tallied."""
+    k = family.k
+    if k < 2:
+        return {k: 1.0}
+    lumps = shapes.lumps_of(family, theta)
+    ellipse = family.kind == "ellipses"
+    axes = [shapes.axes_and_angle(lump, ellipse)[:2] for lump in lumps]
+    var = np.maximum(np.diag(cov), 0.0)
+    # each lump's reach moves by its centre's sd and its size's (log R's sd times its longest axis)
+    reach_var = [float(var[s][:2].sum()) + (major * math.sqrt(var[s][2])) ** 2
+                 for s, (major, _) in zip(map(family.lump_slice, range(k)), axes)]
+    unsure, linked = [], []
+    for j, m in zip(*_pairs(k)):
+        spread = SURE_SDS * math.sqrt(reach_var[j] + reach_var[m])
+        distance = math.dist(lumps[j][:2], lumps[m][:2])
+        if distance - axes[j][0] - axes[m][0] > spread:
+            continue  # apart even along their longest axes
+        if distance - axes[j][1] - axes[m][1] < -spread:
+            linked.append((j, m))  # overlapping even along their shortest axes
+        else:
+            unsure.append((j, m))
+    if not unsure:
+        return {len(_components(k, linked)): 1.0}
+    draws = _draws(theta, cov)
+    tally: dict[int, float] = {}
+    for sample in draws:
+        sampled = shapes.lumps_of(family, sample)
+        edges = linked + [(j, m) for j, m in unsure if _overlap(sampled[j], sampled[m], ellipse)]
+        count = len(_components(k, edges))
+        tally[count] = tally.get(count, 0.0) + 1.0 / len(draws)
+    return tally
+
+
+def _draws(theta: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """COUNT_DRAWS parameter vectors from N(theta, cov) (cov symmetrised, its negative eigenvalues dropped)."""
+    values, vectors = np.linalg.eigh((cov + cov.T) / 2.0)
+    root = vectors * np.sqrt(np.maximum(values, 0.0))
+    z = np.random.default_rng(0).standard_normal((COUNT_DRAWS, len(theta)))
+    return theta + z @ root.T
+
+
+def _overlap(a: np.ndarray, b: np.ndarray, ellipse: bool) -> bool:
+    """Whether two lumps' 50 % boundaries overlap at all (the `regions` rule for one pair)."""
+    return _shared_area(a, b, ellipse) > 0.0
+
+
+def _components(k: int, edges: list[tuple[int, int]]) -> list[list[int]]:
+    """The connected components of k lumps joined by `edges`, each a list of indices in order."""
+    parent = list(range(k))
 
     def root(i: int) -> int:
         while parent[i] != i:
             i = parent[i]
         return i
 
-    for j, m, shared in _shared_areas(family, theta):
-        if shared > 0.0:
-            parent[root(m)] = root(j)
+    for j, m in edges:
+        parent[root(m)] = root(j)
     groups: dict[int, list[int]] = {}
-    for i in range(family.k):
+    for i in range(k):
         groups.setdefault(root(i), []).append(i)
     return sorted(groups.values())
 
@@ -371,15 +429,17 @@ def _shared_areas(family: shapes.Family, theta: np.ndarray) -> list[tuple[int, i
         return []
     ellipse = family.kind == "ellipses"
     lumps = shapes.lumps_of(family, theta)
-    out = []
-    for j, m in zip(*_pairs(family.k)):
-        small, other = sorted((lumps[j], lumps[m]), key=lambda params: params[2])
-        major, minor, angle = shapes.axes_and_angle(small, ellipse)
-        c, s = math.cos(math.radians(angle)), math.sin(math.radians(angle))
-        ex, ey = major * _UNIT_DISC[:, 0], minor * _UNIT_DISC[:, 1]
-        points = np.column_stack([small[0] + c * ex - s * ey, small[1] + s * ex + c * ey])
-        out.append((int(j), int(m), float((shapes.log_rho2(other, points, ellipse)[0] < 0.0).mean())))
-    return out
+    return [(int(j), int(m), _shared_area(lumps[j], lumps[m], ellipse)) for j, m in zip(*_pairs(family.k))]
+
+
+def _shared_area(a: np.ndarray, b: np.ndarray, ellipse: bool) -> float:
+    """The share of the smaller lump's area inside the other's 50 % boundary."""
+    small, other = sorted((a, b), key=lambda params: params[2])
+    major, minor, angle = shapes.axes_and_angle(small, ellipse)
+    c, s = math.cos(math.radians(angle)), math.sin(math.radians(angle))
+    ex, ey = major * _UNIT_DISC[:, 0], minor * _UNIT_DISC[:, 1]
+    points = np.column_stack([small[0] + c * ex - s * ey, small[1] + s * ex + c * ey])
+    return float((shapes.log_rho2(other, points, ellipse)[0] < 0.0).mean())
 
 
 def _sunflower(n: int) -> np.ndarray:

@@ -42,6 +42,7 @@ ELLIPSE_START_STRETCH = 0.4  # log axis ratio an ellipse start is given along a 
 NEGLIGIBLE_NATS = 7.0  # a hypothesis whose Laplace evidence (an upper bound of its checked one) is this far
 #                       below the best checked one weighs under 1e-3 (< CONTENDER_WEIGHT): not worth checking
 RECHECK_GROWTH = 4 / 3  # a volume check holds for its mode (within 1 sd) until the readings grow this much
+COUNT_SHARE = 1e-3  # a hypothesis with less of the choice than this cannot move the count's mass past 0.999
 
 
 @dataclass(frozen=True)
@@ -74,7 +75,8 @@ class Choice:
 
     @property
     def count_weight(self) -> float:
-        """The posterior mass of the chosen hypothesis's count: all the hypotheses that agree on it."""
+        """The posterior mass of the chosen hypothesis's count: all the hypotheses that agree on it, each by its
+        share of draws that do (evidence.region_counts)."""
         return self.counts.get(self.count_of(self.chosen), self.weight)
 
 
@@ -458,8 +460,13 @@ class Hypotheses:
         choice = Choice(chosen, shares[chosen], separate[1] if len(separate) > 1 else None, weights, {}, shares,
                         regions)
         for m in separate:
-            count = choice.count_of(m)
-            choice.counts[count] = choice.counts.get(count, 0.0) + shares[m]
+            # each hypothesis's count over its parameters' posterior: lumps whose boundaries nearly meet may be
+            # one region or two (evidence.region_counts); one too unlikely to move the count, at its mode
+            fit = self.fits.get(m)  # None for the free-form map, whose regions are its own
+            spread = evidence.region_counts(fit.family, fit.theta, fit.cov) \
+                if fit is not None and m in regions and shares[m] >= COUNT_SHARE else {choice.count_of(m): 1.0}
+            for count, p in spread.items():
+                choice.counts[count] = choice.counts.get(count, 0.0) + shares[m] * p
         return choice
 
     def _unfelt_centre(self, chosen_log_evidence: float, obs: Observations) -> np.ndarray | None:
