@@ -151,3 +151,21 @@ def test_two_circles_across_a_rectangle_are_reported_as_one_lump_its_shape():
     m = metrics.compare(truth, [lump.as_dict()], (60.0, 60.0))
     assert (m["lumps_found"], m["false_lumps"]) == (1, 0)
     assert m["min_iou"] >= 0.8 and m["max_center_error_mm"] < 0.6
+
+
+@pytest.mark.parametrize("centre_sd, decided", [(0.5, False), (0.01, True)])
+def test_the_choice_weighs_the_count_over_the_chosen_fit_s_parameters(centre_sd, decided):
+    """Hypotheses.choice gathers each hypothesis's count by its draws: the chosen fit alone, two circles whose
+    boundaries stand 0.45 mm apart, claims two lumps at its weight of 1.000, but the count's mass on two is
+    under the default confidence unless their boundaries are sure to far better than the gap."""
+    from palpd.learner.evidence import Fit
+    from palpd.learner.hypotheses import Hypotheses
+
+    family, theta = _theta("circles", (0, 0, 5), (10.45, 0, 5))
+    hypotheses = Hypotheses((60.0, 60.0), 0.3, 0.01)
+    hypotheses.fits = {"circles:2": Fit(family, theta, _cov(family, centre_sd, 0.03 * centre_sd / 0.5), 0.01, 0.0,
+                                        0.0, True, 30, 0.0, evidence_checked=True)}
+    choice = hypotheses.choice(None, None)
+    assert (choice.chosen, choice.weight, choice.count_of("circles:2")) == ("circles:2", 1.0, 2)
+    assert sum(choice.counts.values()) == pytest.approx(1.0)
+    assert (choice.count_weight >= 0.9) is decided, choice.counts
