@@ -387,7 +387,7 @@ def region_counts(family: shapes.Family, theta: np.ndarray, cov: np.ndarray) -> 
     tally: dict[int, float] = {}
     for sample in draws:
         sampled = shapes.lumps_of(family, sample)
-        edges = linked + [(j, m) for j, m in unsure if _overlap(sampled[j], sampled[m], ellipse)]
+        edges = linked + [(j, m) for j, m in unsure if _shared_area(sampled[j], sampled[m], ellipse) > 0.0]
         count = len(_components(k, edges))
         tally[count] = tally.get(count, 0.0) + 1.0 / len(draws)
     return tally
@@ -399,11 +399,6 @@ def _draws(theta: np.ndarray, cov: np.ndarray) -> np.ndarray:
     root = vectors * np.sqrt(np.maximum(values, 0.0))
     z = np.random.default_rng(0).standard_normal((COUNT_DRAWS, len(theta)))
     return theta + z @ root.T
-
-
-def _overlap(a: np.ndarray, b: np.ndarray, ellipse: bool) -> bool:
-    """Whether two lumps' 50 % boundaries overlap at all (the `regions` rule for one pair)."""
-    return _shared_area(a, b, ellipse) > 0.0
 
 
 def _components(k: int, edges: list[tuple[int, int]]) -> list[list[int]]:
