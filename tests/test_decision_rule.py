@@ -147,3 +147,35 @@ def test_the_stated_boundary_error_holds_the_unfelt_lumps_area_and_a_tight_toler
     learner.settings = learner.settings.model_copy(update={"expected_lumps": 0.0})
     learner._cache.clear()
     assert learner._unfelt_hole() is None and learner.unfelt_area_mm2() == 0.0
+
+
+def test_texture_that_would_hide_the_smallest_contrast_asked_for_explains_no_misfit():
+    """13 readings 10 mm apart of a phantom whose middle block is 2.5x stiffer, its soft third scattering widely
+    (as a dVRK's dense grid read them): neighbours differ by 60x the noise floor, and `none`, missing them by 53x,
+    had that taken for texture and claimed no lump at weight 0.999. Texture so large would hide a lump of
+    `min_contrast` at every reading, so it accounts for no more than that lump stands out by (3 sd)."""
+    from palpd.config import Settings
+    from palpd.learner import Learner, shapes
+    from palpd.learner.evidence import SUPPORT_SIGMA
+    from palpd.learner.likelihood import texture_sd
+
+    # (x, y) mm, stiffness N/mm, its fit's se: the readings a seed-1 active scan took, in its order
+    readings = [((0.0, -8.049), 0.18728, 0.000436), ((9.633, 8.051), 0.0822, 0.000401),
+                ((-28.899, 8.051), 0.0374, 0.000397), ((-19.267, -8.05), 0.32429, 0.000481),
+                ((-9.633, 8.051), 0.15419, 0.00048), ((19.267, -8.049), 0.1391, 0.000428),
+                ((28.899, 8.051), 0.08825, 0.000451), ((-19.999, 3.995), 0.05367, 0.000347),
+                ((-18.304, -9.2), 0.08101, 0.000414), ((0.0, 0.001), 0.18086, 0.000393),
+                ((-21.194, -5.749), 0.06495, 0.000375), ((28.9, -11.5), 0.14009, 0.000365),
+                ((26.973, -11.499), 0.14154, 0.000375)]
+    learner = Learner((57.8, 23.0), Settings().learner, 0.3, seed=1)
+    for xy, k, se in readings:
+        learner.observe(xy, k, se)
+    assert learner.choice.chosen == "none" and learner.choice.weight > 0.9, learner.choice
+    fit, exact = learner.chosen_fit(), learner.obs.exact
+    f, _ = shapes.evaluate(fit.family, fit.theta, learner.obs.xy[exact], jacobian=False)
+    raw = texture_sd(learner.obs.xy[exact], learner.obs.y[exact] - f, learner.obs.sd[exact], 6)
+    cap = math.log1p(0.3) / SUPPORT_SIGMA
+    assert raw >= fit.noise_sd > 5.0 * cap  # what the neighbours alone would have excused
+    assert learner._texture_sd() <= cap + 1e-12
+    assert not learner._adequate() and not learner.decided() and learner.undecided().startswith("none, the likeliest")
+    assert learner.next_probe() is not None  # the scan reads on
