@@ -90,6 +90,20 @@ def test_a_lateral_force_stop_lifts_the_probe_off_without_sliding_on():
     assert bench.world.amplifiers_on is False
 
 
+def test_a_slide_pressing_into_tissue_too_stiff_for_its_depth_lifts_at_the_force_limit_not_at_the_cap():
+    """12 N/mm: the force limit (4 N) comes a third of a millimetre in, long before the sliding depth. The press
+    went on past it, the tip chattering on the surface, to the safety supervisor's 6 N cap (a force_cap fault
+    ended the scan); it lifts off at the limit now, as the slide itself and a discrete press do."""
+    settings = Settings()
+    bench = open_simulated_bench(settings, Scene(name="very-stiff", tissue={"stiffness_n_per_mm": 12.0}))
+    bench.servo.start()
+    task = SlidingPalpation((0.0, 0.0), (20.0, 0.0), settings.palpation)
+    bench.servo.run(task)  # no ScanFault
+    assert task.done and task.record.stop_reason == "force" and bench.servo.fault is None
+    assert bench.world.max_contact_force_n < settings.safety.force_cap_n
+    assert bench.world.contact_force_n == 0.0 and bench.world.tip_mm()[2] > 0.0  # lifted off, not pressing
+
+
 def test_a_noisy_sensor_does_not_fake_the_surface_a_slide_presses_from():
     """At 0.08 N of noise a raw sample above the 0.03 N floor comes on almost every approach: judged on the
     low-passed force against thresholds scaled to the tare's noise, contact is the surface, and the path reads."""

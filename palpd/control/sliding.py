@@ -89,8 +89,14 @@ class SlidingPalpation:
         return self._setpoint()
 
     def _press(self, tick, dt) -> Vec3:
-        """Down to the set indentation at the indentation speed, then the modulation and the path begin."""
+        """Down to the set indentation at the indentation speed, then the modulation and the path begin; at
+        the palpation's force limit it lifts off, as the slide does and as a discrete press stops there (on
+        tissue 12 N/mm stiff the press went on past 4 N, the tip chattering on the surface, to the safety
+        supervisor's 6 N cap: a force_cap fault ended the scan)."""
         goal = self.record.contact_z_mm - self.s.sliding_depth_mm
+        if tick.normal_force_n >= self.s.max_force_n:
+            self._lift("force")
+            return self._setpoint()
         if at_floor(tick, self.s.speed_mm_s):  # the contact was read late (or the sensor lies): not past the floor
             self._lift("depth")
             return self._setpoint()
