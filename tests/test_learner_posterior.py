@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 from scipy.stats import qmc
 
 from palpd.learner import describe, evidence, posterior
@@ -186,3 +187,24 @@ def test_a_radius_on_a_ridge_no_start_found_is_reported_as_unsure_as_its_profile
     (lump,) = learner.lumps()
     assert abs(lump.radius_mm - 8.0) <= 3.0 * lump.radius_sd_mm, (lump.radius_mm, lump.radius_sd_mm)
     assert not learner.decided() and learner.next_probe() is not None
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(-1e5, 1e5), min_size=1, max_size=8), st.floats(0.0, 1e4))
+def test_the_shares_among_hypotheses_stay_a_distribution_however_far_apart_their_evidences(log_z, shift):
+    """Thousands of nats apart (a sliding raster's ~1300 readings) the shares of the hypotheses whose lumps are
+    apart had been taken from weights over every hypothesis, and all underflowed to 0 behind lumps laid over
+    one another: 0 / 0 ended the scan with a traceback. From the likeliest of them, they never can."""
+    from palpd.learner.hypotheses import shares_among
+
+    evidences = {f"h{i}": v for i, v in enumerate(log_z)}
+    shares = shares_among(evidences)
+    assert all(math.isfinite(v) and 0.0 <= v <= 1.0 for v in shares.values())
+    assert math.fsum(shares.values()) == pytest.approx(1.0, abs=1e-12)
+    best = max(evidences, key=evidences.get)
+    assert shares[best] >= 1.0 / len(evidences) - 1e-12
+    shifted = shares_among({m: v - shift for m, v in evidences.items()})  # only differences count
+    assert all(shifted[m] == pytest.approx(shares[m], abs=1e-9) for m in evidences)
+    for m, v in evidences.items():  # each against the likeliest, as their evidences say where that is representable
+        if evidences[best] - v < 700.0:
+            assert shares[m] / shares[best] == pytest.approx(math.exp(v - evidences[best]), rel=1e-9)

@@ -440,15 +440,11 @@ class Hypotheses:
             candidates[name] = self._evidence_checked(name, obs).log_evidence
             best = max(best, candidates[name])
         names = sorted(candidates, key=lambda m: -candidates[m])
-        top = candidates[names[0]]
-        raw = {m: math.exp(candidates[m] - top) for m in names}
-        total = sum(raw.values())
-        weights = {m: v / total for m, v in raw.items()}
+        weights = shares_among({m: candidates[m] for m in names})
         self.weights = weights
         separate = [m for m in names if m == "free-form" or evidence.apart(self.fits[m].family, self.fits[m].theta)]
         chosen = separate[0]
         self.unfelt_centre = self._unfelt_centre(candidates[chosen], obs)
-        share = sum(weights[m] for m in separate)
         # The posterior of the count sums every hypothesis that claims as many lumps, the free-form map too: a
         # band across the tissue, read as one ellipse and as the map's one region by turns, had each reading
         # "change the count" and ended `undetermined` at the budget, its boundary at IoU 0.96.
@@ -456,7 +452,7 @@ class Hypotheses:
                    if m != "free-form" and self.fits[m].family.k > 1}
         if "free-form" in candidates:
             regions["free-form"] = free_form_regions
-        shares = {m: weights[m] / share for m in separate}
+        shares = shares_among({m: candidates[m] for m in separate})
         choice = Choice(chosen, shares[chosen], separate[1] if len(separate) > 1 else None, weights, {}, shares,
                         regions)
         for m in separate:
@@ -576,6 +572,17 @@ def _resized(fit: Fit) -> list[np.ndarray]:
             theta[fit.family.lump_slice(j).start + 2] += math.log(factor)
             out.append(theta)
     return out
+
+
+def shares_among(log_evidences: dict[str, float]) -> dict[str, float]:
+    """Each hypothesis's posterior share among these, from their log evidences (equal priors), computed from
+    the likeliest of them: weights taken over a larger set first could all underflow to 0 here (a sliding
+    raster's ~1300 readings of a stiff lump put thousands of nats between lumps laid over one another and
+    those apart, and the shares of those apart were 0 / 0)."""
+    top = max(log_evidences.values())
+    raw = {m: math.exp(v - top) for m, v in log_evidences.items()}
+    total = sum(raw.values())
+    return {m: v / total for m, v in raw.items()}
 
 
 def _closer(more: Fit | None, fit: Fit | None) -> Fit | None:
