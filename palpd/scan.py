@@ -184,6 +184,11 @@ def failure_reason(probes: list) -> str | None:
     return f"{count} of {len(probes)} palpations {WHAT[outcome]}: {HINTS[outcome]}"
 
 
+def _cut_short(faults: list[dict]) -> str | None:
+    """A sentence when a safety fault ended the scan: it palpated only part of what it planned to."""
+    return f"a safety fault ({faults[0]['code']}) stopped the scan before it was done" if faults else None
+
+
 def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Probe], None] | None = None) -> dict:
     """Palpate where the planner says until it says stop; returns the report body (without truth).
 
@@ -230,9 +235,11 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     finally:
         servo.stop()
     lumps, verdict, model = _estimate(planner, probes, settings)
-    failing = failure_reason(probes)
+    failing = failure_reason(probes) or _cut_short(faults)
     if failing:
-        verdict = "undetermined"  # palpations that keep failing decide nothing, least of all "no lump"
+        # palpations that keep failing decide nothing, least of all "no lump"; nor does a plan a fault cut short:
+        # a sliding raster of a noisy sensor stopped at its 26th reading by an indentation fault had said "none"
+        verdict = "undetermined"
     body = {
         "strategy": settings.scan.strategy,
         "palpation": p.mode,

@@ -104,6 +104,20 @@ def test_a_slide_pressing_into_tissue_too_stiff_for_its_depth_lifts_at_the_force
     assert bench.world.contact_force_n == 0.0 and bench.world.tip_mm()[2] > 0.0  # lifted off, not pressing
 
 
+def test_a_scan_a_safety_fault_cut_short_claims_no_count():
+    """0.3 N of noise: a sliding raster's fourth path went past the indentation limit and the fault ended the
+    scan after a few rows, with "none" claimed for the whole tissue from them (a wrong count: the lump lay in
+    rows never read). A plan a fault cut short decides nothing: `undetermined`, and why."""
+    from palpd.scan import plan, run_scan
+
+    settings = Settings().updated(scan={"strategy": "raster"}, palpation={"mode": "sliding"})
+    scene = load_scene(SCENES / "very-noisy-sensor.toml")
+    planner = plan("raster", scene.tissue.size_mm, settings.scan.max_palpations, 0, settings)
+    report = run_scan(open_simulated_bench(settings, scene, seed=0), settings, planner)
+    assert [f["code"] for f in report["faults"]] == ["indentation"]
+    assert report["verdict"] == "undetermined" and "indentation" in report["undetermined_reason"]
+
+
 def test_a_noisy_sensor_does_not_fake_the_surface_a_slide_presses_from():
     """At 0.08 N of noise a raw sample above the 0.03 N floor comes on almost every approach: judged on the
     low-passed force against thresholds scaled to the tare's noise, contact is the surface, and the path reads."""
