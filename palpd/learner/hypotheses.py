@@ -452,7 +452,11 @@ class Hypotheses:
                    if m != "free-form" and self.fits[m].family.k > 1}
         if "free-form" in candidates:
             regions["free-form"] = free_form_regions
-        shares = shares_among({m: candidates[m] for m in separate})
+        share = sum(weights[m] for m in separate)
+        # their shares among themselves; from their own evidences when, behind lumps laid over one another
+        # thousands of nats ahead, their weights all underflowed to 0 (the division failed: shares_among)
+        shares = {m: weights[m] / share for m in separate} if share > 0.0 else \
+            shares_among({m: candidates[m] for m in separate})
         choice = Choice(chosen, shares[chosen], separate[1] if len(separate) > 1 else None, weights, {}, shares,
                         regions)
         for m in separate:
