@@ -179,3 +179,25 @@ def test_texture_that_would_hide_the_smallest_contrast_asked_for_explains_no_mis
     assert learner._texture_sd() <= cap + 1e-12
     assert not learner._adequate() and not learner.decided() and learner.undecided().startswith("none, the likeliest")
     assert learner.next_probe() is not None  # the scan reads on
+
+
+def test_no_lump_is_claimed_only_as_far_as_the_readings_reach():
+    """Plain tissue read over its left half only (a sliding scan whose paths kept losing contact, a fixed plan
+    cut short): `none` is the likeliest, but "no lump" claims the whole tissue, and a spot 30 mm from every
+    reading rules nothing out there. The verdict waits, saying why; the same tissue read all over is `none`."""
+    from palpd.config import Settings
+    from palpd.learner import Learner
+
+    rng = np.random.default_rng(0)
+    def read(points):
+        learner = Learner((60.0, 60.0), Settings().learner, 0.3, seed=0)
+        for xy in points:
+            learner.observe(xy, 0.12 * (1.0 + rng.normal(0.0, 0.005)), 0.0005)
+        return learner
+
+    grid = [(x, y) for x in np.arange(-27.0, 28.0, 6.0) for y in np.arange(-27.0, 28.0, 6.0)]
+    half = read([p for p in grid if p[0] < 0.0])
+    assert half.choice.chosen == "none" and half.choice.count_weight >= 0.9
+    assert half.verdict() == "undetermined" and half.undecided().startswith("no lump among the readings")
+    assert half.unfelt_radius_mm() > 25.0
+    assert read(grid).verdict() == "none"

@@ -268,10 +268,14 @@ class Decision:
         reach = self.settings.coverage_mm
         if self.choice is None or not self._no_lump_chosen():
             return self.coverage.farthest_beyond(reach)
-        unexplored = self.coverage.farthest_beyond(min(reach, self.none_reach_mm))
+        unexplored = self.coverage.farthest_beyond(self._none_reach_mm())
         if unexplored is None and self._centre_unprobed():
             return 0.0, 0.0
         return unexplored
+
+    def _none_reach_mm(self) -> float:
+        """How far from every reading `none` rules lumps out: the none reach, at most `coverage_mm`."""
+        return min(self.settings.coverage_mm, self.none_reach_mm)
 
     def _centre_unprobed(self) -> bool:
         reach = CENTRE_REACH * self.none_reach_mm
@@ -438,7 +442,13 @@ class Decision:
         count: a spot farther from every reading than a lump's felt footprint, a hole beside lumps found
         together that a lump could hide in, and a rival of another count that one reading could make the
         likelier. A verdict leaves those to the report's unfelt_radius_mm (no lump larger hides between the
-        readings) and count_weight."""
+        readings) and count_weight, but for "no lump": that claims the whole tissue, so a verdict of `none` too
+        waits until no spot is farther from every reading than the `none` reach (a sliding scan of very soft
+        tissue whose paths kept losing contact said "no lump" with a 41 mm lump left possible between its
+        readings)."""
+        if not stopping and self._no_lump_chosen() and self.coverage.farthest_beyond(self._none_reach_mm()) is not None:
+            return (f"no lump among the readings, but a spot lies {self.unfelt_radius_mm():.1f} mm from every reading, "
+                    f"farther than the {self._none_reach_mm():g} mm within which \"no lump\" rules lumps out")
         if self._hidden_lump() is not None:
             return "readings above the chosen model hint together at a lump no hypothesis has"
         if self._unfelt() is not None or self._rivals_unread_lump() is not None:
