@@ -51,8 +51,10 @@ def inside_probability(fit, xy: np.ndarray) -> np.ndarray:
     near = np.zeros(len(xy), dtype=bool)
     for j in range(family.k):
         params = fit.theta[family.lump_slice(j)]
-        near |= np.hypot(*(xy - params[:2]).T) <= _reach_mm(params, fit.cov[family.lump_slice(j), family.lump_slice(j)],
-                                                            ellipse)
+        reach = _reach_mm(params, fit.cov[family.lump_slice(j), family.lump_slice(j)], ellipse)
+        dx, dy = xy[:, 0] - params[0], xy[:, 1] - params[1]
+        box = np.flatnonzero((np.abs(dx) <= reach) & (np.abs(dy) <= reach))  # the distance only where it may be in reach
+        near[box[np.hypot(dx[box], dy[box]) <= reach]] = True
     if not near.any():
         return p
     xy_near = xy[near]
