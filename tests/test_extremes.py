@@ -191,6 +191,26 @@ def test_a_press_the_limit_stops_short_on_hardening_tissue_is_read_at_the_refere
     assert probe.stiffness_n_per_mm == pytest.approx(truth, abs=3.0 * probe.fit.stiffness_se_n_per_mm + 0.05 * truth)
 
 
+@pytest.mark.parametrize("lead_counted", [True, False])
+def test_a_press_on_a_stiff_lump_reaches_its_depth(monkeypatch, lead_counted):
+    """The paper scene's lump pushes back 2 N at 4 mm, and the servo's spring (1.5 N/mm) then holds its setpoint
+    1.3 mm below the tip. Bounding the setpoint itself by the floor (0.75 mm under the deepest press) ended every
+    press there, 2.9-3.4 mm down and labelled `depth`; counting the lead the push holds, the press reads to the
+    4 mm asked (`surface.held_lead_mm`; without it, as before, this test fails)."""
+    import palpd.control.sensing as sensing
+    if not lead_counted:
+        monkeypatch.setattr(sensing, "held_lead_mm", lambda *args: 0.0)
+    bench = tared_bench(load_scene(SCENES / "paper.toml"))
+    probe = palpate(bench, SETTINGS, (7.5, -4.0))  # the lump's centre
+    deepest = max(probe.record.depth_mm)
+    assert probe.outcome == "fit" and probe.record.max_force_n > 1.5
+    if lead_counted:
+        assert probe.record.stop_reason == "depth" and deepest >= SETTINGS.palpation.depth_mm - 0.05, deepest
+        assert bench.world.max_indentation_mm <= SETTINGS.palpation.depth_mm + SETTINGS.safety.indentation_margin_mm
+    else:
+        assert deepest < SETTINGS.palpation.depth_mm - 0.5, deepest  # what the floor alone did
+
+
 def test_a_press_set_shallower_than_the_reference_is_read_where_it_ends():
     """palpation.depth_mm 1.5 under the 2 mm reference: every press stops by depth, and all are read at their
     deepest sample, comparable with each other, not along a curve beyond what any of them pressed."""

@@ -251,6 +251,31 @@ def test_a_push_into_soft_tissue_stops_at_the_depth_bound_whatever_the_force_rea
     assert bench.world.max_indentation_mm <= settings.palpation.depth_mm + 1.0
 
 
+def test_a_press_ends_where_its_setpoint_would_bring_the_tip_to_rest():
+    """surface.at_floor: the setpoint's depth counts less the lead the tissue's push surely holds the tip above
+    it (the force above 3 sds of the measured noise, over the servo's stiffness); none before the noise is known."""
+    from types import SimpleNamespace
+
+    from palpd.control.contact import SensorNoise
+    from palpd.control.surface import FLOOR_CLEARANCE_MM, at_floor, held_lead_mm
+
+    noise = SensorNoise(0.05, 0.0, 200)
+    assert held_lead_mm(2.0, None, 1.5) == 0.0  # no noise measured yet: nothing counted
+    assert held_lead_mm(0.1, noise, 1.5) == 0.0  # within 3 sds of the noise: nothing surely pushes
+    assert held_lead_mm(2.0, noise, 1.5) == pytest.approx((2.0 - 0.15) / 1.5)
+    floor = -4.75
+
+    def tick(tip_z, setpoint_z, lead):
+        return SimpleNamespace(tip_mm=(0.0, 0.0, tip_z), setpoint_mm=(0.0, 0.0, setpoint_z), held_lead_mm=lead,
+                               floor_z_mm=floor)
+
+    # a stiff spot: the setpoint past the floor, and the push holds the tip 0.2 mm above the clearance
+    assert not at_floor(tick(-4.3, -5.6, 1.3))
+    assert at_floor(tick(-4.3, -5.6, 0.0))  # no push to hold it: the tip would follow the setpoint through
+    assert at_floor(tick(floor + FLOOR_CLEARANCE_MM, -4.0, 0.0))  # the tip itself at the floor
+    assert at_floor(tick(-4.3, -5.6, 1.3), speed_mm_s=40.0)  # a fast press ends sooner: the tip's stopping
+
+
 def test_the_surface_is_refined_by_finished_palpations_near_them_only():
     from palpd.control.palpation import PalpationRecord
     from palpd.control.surface import SurfaceGuard

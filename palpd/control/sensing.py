@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from drivers.errors import DriverError
 from drivers.interfaces import SAMPLE_STALE, ForceSample
 from drivers.phantom import model
+from palpd.control.surface import held_lead_mm
 
 Vec3 = tuple[float, float, float]
 DEVICE_CLOCK_WRAP_S = 2**32 * 1e-6  # the bridge's microsecond counter is 32 bits
@@ -40,6 +41,7 @@ class Tick:
     commanded_force_n: Vec3 = NO_FORCE  # the force the last command's motor currents put on the tip (tissue frame)
     floor_z_mm: float = -math.inf  # the deepest the tip may go here (palpd.control.surface; -inf: no floor known)
     path_accel_mm_s2: Vec3 = NO_FORCE  # the acceleration the last command's path asked of the tip (tissue frame)
+    held_lead_mm: float = 0.0  # how far the tissue's push surely holds the tip above its setpoint (surface.held_lead_mm)
 
 
 
@@ -63,7 +65,8 @@ class Sensing:
         tick = Tick(t_s, q, tip, self._velocity, force, normal, sample, state.status, gap, sample_gap,
                     self._motion_t, self._setpoint, self.controller.last_force_n, self._lost_s,
                     self.controller.last_force_vec_n,
-                    self.surface.floor_z_mm(tip) if self.surface is not None else -math.inf, self._path_accel)
+                    self.surface.floor_z_mm(tip) if self.surface is not None else -math.inf, self._path_accel,
+                    held_lead_mm(normal, self.forces.noise, self.controller.kp))
         self._lost_s = 0.0
         self.last_tick = tick
         self.history.append((t_s, tip, force))

@@ -6,9 +6,9 @@ too: the surface starts where the tissue was registered (z = 0 in the tissue fra
 palpation's contact point once that palpation has ended without a fault (never by the press under way: its own
 reading is the one in doubt). The floor at a point is that surface less the deepest indentation any palpation
 asks for (palpation.depth_mm, or a slide's depth and swing) less `safety.indentation_margin_mm`. A task ends
-its press when the tip, or its setpoint (where the tip is going), comes within FLOOR_CLEARANCE_MM of the floor,
-as at its depth, and the tip below the floor is an `indentation` fault (category 1: the probe backs out along
-the normal).
+its press when the tip, or where its setpoint would bring the tip to rest, comes within FLOOR_CLEARANCE_MM of
+the floor, as at its depth, and the tip below the floor is an `indentation` fault (category 1: the probe backs
+out along the normal).
 """
 from __future__ import annotations
 
@@ -21,6 +21,7 @@ FLOOR_CLEARANCE_MM = 0.25  # a task stops pressing this far above the floor: the
 STOPPING_S = 0.012  # a tip pressed at v comes to rest about v times this past its stopped setpoint (measured
 #                     on a soft 3-D layer: 0.38 mm from 40 mm/s), so a press at v ends that much earlier
 NO_FLOOR = -math.inf
+HELD_NOISE_SDS = 3.0  # the push counted as holding the tip is the normal force less this many sds of the sensor's noise
 
 
 def deepest_press_mm(palpation) -> float:
@@ -29,15 +30,31 @@ def deepest_press_mm(palpation) -> float:
 
 
 def at_floor(tick, speed_mm_s: float = 0.0) -> bool:
-    """The tip has come as deep as a task moving it down at speed_mm_s may take it here, or its setpoint has:
-    the press ends, as at its depth. The tip goes where its setpoint is, so a press stopped by the tip alone
-    with its setpoint deeper carries the tip on: on a soft 3-D layer at 20 mm/s the setpoint led the tip by
-    0.25 mm (the force over the controller's stiffness), already past the floor, and the tip followed it
-    through (an `indentation` fault). And a tip pressed at a speed comes to rest past its stopped setpoint,
-    0.38 mm from 40 mm/s: the faster the task, the earlier it ends (the task's own speed, not the tip's
-    measured one: a tip catching up with its setpoint after contact moved at 76 mm/s, toward the setpoint)."""
-    deepest = tick.tip_mm[2] if tick.setpoint_mm is None else min(tick.tip_mm[2], tick.setpoint_mm[2])
+    """The tip has come as deep as a task moving it down at speed_mm_s may take it here, or its setpoint would
+    bring it there: the press ends, as at its depth. The tip goes where its setpoint is, less the lead the
+    tissue's push holds it above it (`held_lead_mm`), so a press stopped by the tip alone with its setpoint
+    deeper than that carries the tip on: on a soft 3-D layer at 20 mm/s the setpoint led the tip by 0.25 mm,
+    already past the floor, and the tip followed it through (an `indentation` fault). Counting no lead at
+    all ended presses on stiff spots short instead: on the paper scene's lump (2 N, 1.3 mm of lead) every
+    press ended at the floor 2.9-3.4 mm down, not at the 4 mm asked, and read the lump shallower than the
+    tissue beside it. And a tip pressed at a speed comes to rest past its stopped setpoint, 0.38 mm from
+    40 mm/s: the faster the task, the earlier it ends (the task's own speed, not the tip's measured one: a
+    tip catching up with its setpoint after contact moved at 76 mm/s, toward the setpoint)."""
+    deepest = tick.tip_mm[2] if tick.setpoint_mm is None else min(tick.tip_mm[2],
+                                                                    tick.setpoint_mm[2] + tick.held_lead_mm)
     return deepest <= tick.floor_z_mm + FLOOR_CLEARANCE_MM + speed_mm_s * STOPPING_S
+
+
+def held_lead_mm(normal_force_n: float, noise, stiffness_n_per_mm: float) -> float:
+    """How far the tissue's push surely holds the tip above its setpoint: at rest the servo's spring (kp, its
+    configured stiffness: the most it is, so the least lead) balances the push, so the lead is the force over
+    kp, counting only the force above HELD_NOISE_SDS of the measured noise (`noise`: contact.SensorNoise, None
+    before the sensor's noise is measured, then no lead is counted). A sensor that reads light counts less
+    lead (the press ends sooner); one that reads heavy meets the force limit first, and a tip that sinks
+    anyway (tissue that gives way) is still the `indentation` fault."""
+    if noise is None:
+        return 0.0
+    return max(normal_force_n - HELD_NOISE_SDS * noise.sd_n, 0.0) / stiffness_n_per_mm
 
 
 class SurfaceGuard:
