@@ -102,7 +102,7 @@ def _unfitted(record: PalpationRecord, exc: FitRejected) -> Probe:
         return _too_soft_in_approach(record, str(exc))
     if exc.reason in NO_FIT and record.stop_reason == "force":
         return _too_stiff(record, str(exc))
-    if exc.reason in ("no_rise", "constant_force") and record.stop_reason == "depth" and deepest_mm > 0:
+    if exc.reason in ("no_rise", "constant_force") and record.stop_reason in ("depth", "floor") and deepest_mm > 0:
         resolution_n = 3.0 * (record.noise_sd_n or 0.0)
         bound = (max(record.max_force_n, 0.0) + resolution_n) / deepest_mm
         return Probe(record, None, f"no force above the noise at full depth ({exc})", "too_soft", bound)

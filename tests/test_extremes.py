@@ -195,8 +195,8 @@ def test_a_press_the_limit_stops_short_on_hardening_tissue_is_read_at_the_refere
 def test_a_press_on_a_stiff_lump_reaches_its_depth(monkeypatch, lead_counted):
     """The paper scene's lump pushes back 2 N at 4 mm, and the servo's spring (1.5 N/mm) then holds its setpoint
     1.3 mm below the tip. Bounding the setpoint itself by the floor (0.75 mm under the deepest press) ended every
-    press there, 2.9-3.4 mm down and labelled `depth`; counting the lead the push holds, the press reads to the
-    4 mm asked (`surface.held_lead_mm`; without it, as before, this test fails)."""
+    press there, 2.9-3.4 mm down (labelled `depth`; a press short of its depth is `floor` now); counting the lead
+    the push holds, the press reads to the 4 mm asked (`surface.held_lead_mm`; without it this test fails)."""
     import palpd.control.sensing as sensing
     if not lead_counted:
         monkeypatch.setattr(sensing, "held_lead_mm", lambda *args: 0.0)
@@ -207,8 +207,8 @@ def test_a_press_on_a_stiff_lump_reaches_its_depth(monkeypatch, lead_counted):
     if lead_counted:
         assert probe.record.stop_reason == "depth" and deepest >= SETTINGS.palpation.depth_mm - 0.05, deepest
         assert bench.world.max_indentation_mm <= SETTINGS.palpation.depth_mm + SETTINGS.safety.indentation_margin_mm
-    else:
-        assert deepest < SETTINGS.palpation.depth_mm - 0.5, deepest  # what the floor alone did
+    else:  # what the floor alone did, and the record now says so
+        assert probe.record.stop_reason == "floor" and deepest < SETTINGS.palpation.depth_mm - 0.5, deepest
 
 
 def test_a_press_set_shallower_than_the_reference_is_read_where_it_ends():

@@ -170,7 +170,8 @@ class Palpation:
             self._start_retract(tick, "force")
             return self._setpoint()
         if depth >= self.s.depth_mm or tick.normal_force_n >= self.s.max_force_n or at_floor(tick, self._speed_cap()):
-            reason = "force" if tick.normal_force_n >= self.s.max_force_n and depth < self.s.depth_mm else "depth"
+            reason = "depth" if depth >= self.s.depth_mm else "force" if tick.normal_force_n >= self.s.max_force_n \
+                else "floor"  # short of its depth at the position bound (palpd.control.surface)
             if self.s.hold_s > 0 and not (reason == "force" and self._shallow()):
                 self._phase, self._hold_until, self.record.stop_reason = "hold", tick.motion_t_s + self.s.hold_s, reason
             else:

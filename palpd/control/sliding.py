@@ -98,7 +98,7 @@ class SlidingPalpation:
             self._lift("force")
             return self._setpoint()
         if at_floor(tick, self.s.speed_mm_s):  # the contact was read late (or the sensor lies): not past the floor
-            self._lift("depth")
+            self._lift("floor")
             return self._setpoint()
         self._z = max(goal, self._z - self.s.speed_mm_s * dt)
         if self._z == goal:
@@ -124,7 +124,7 @@ class SlidingPalpation:
         if tick.normal_force_n >= self.s.max_force_n:
             self._lift("force")
         elif at_floor(tick):
-            self._lift("depth")
+            self._lift("floor")
         elif self._filtered_n < self.contact.off_n:
             self._lift("lost_contact")
         return self._phase != "slide"
