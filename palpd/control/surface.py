@@ -50,8 +50,9 @@ def held_lead_mm(normal_force_n: float, noise, stiffness_n_per_mm: float) -> flo
     configured stiffness: the most it is, so the least lead) balances the push, so the lead is the force over
     kp, counting only the force above HELD_NOISE_SDS of the measured noise (`noise`: contact.SensorNoise, None
     before the sensor's noise is measured, then no lead is counted). A sensor that reads light counts less
-    lead (the press ends sooner); one that reads heavy meets the force limit first, and a tip that sinks
-    anyway (tissue that gives way) is still the `indentation` fault."""
+    lead (the press ends sooner); one that reads heavy meets the force limit or the `sensor_drift` check (the
+    sensor against the motors' force) first, and a tip that sinks anyway (tissue that gives way) is still the
+    `indentation` fault."""
     if noise is None:
         return 0.0
     return max(normal_force_n - HELD_NOISE_SDS * noise.sd_n, 0.0) / stiffness_n_per_mm
