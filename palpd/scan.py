@@ -200,7 +200,7 @@ def run_scan(bench: Bench, settings, planner, progress: Callable[[int, int, Prob
     probes: list[Probe] = []
     faults = []
     tared = None
-    lifted = 0  # sliding paths the force limit lifted off before their end: what lay past it was not read
+    lifted = 0  # sliding paths the force limit lifted off somewhere (the spot pressed instead: palpd.slide)
     load_solvers()  # before the motors are on (see there)
     try:
         servo.start()  # homes the arm first, supervised: after a category-0 stop it may lie anywhere

@@ -23,24 +23,46 @@ RASTER_ROWS_MIN = 2
 
 
 def slide(bench, settings, path) -> list:
-    """One sliding palpation through the servo loop: a Probe per stiffness point (none if it found no contact)."""
-    from palpd.scan import Probe
+    """One sliding palpation through the servo loop: a Probe per stiffness point (none if it found no contact).
 
-    thresholds = contact_thresholds(settings.palpation, getattr(bench.servo.forces, "noise", None),
-                                    settings.servo.rate_hz)
-    task = SlidingPalpation(path[0], path[1], settings.palpation, thresholds)
-    bench.servo.run(task, timeout_s=_timeout_s(path, settings.palpation))
-    rec = task.record
-    points = stiffness_points(rec, settings.palpation)
-    if not points and rec.stop_reason == "stopped":
-        return []  # stopped before it read anything: not a failed palpation
-    if not points:  # a named outcome, like a discrete palpation's (the learner and the report need one)
-        record = PalpationRecord(tuple(path[0]), stop_reason=rec.stop_reason or "no_contact")
-        if rec.contact_z_mm is None:
-            return [Probe(record, None, "no contact found", "no_contact")]
-        return [Probe(record, None, f"path too short to read ({rec.stop_reason})", "rejected")]
-    return [Probe(PalpationRecord(point.xy_mm, point.xy_mm, rec.contact_z_mm, max_force_n=rec.max_force_n,
-                                  stop_reason=rec.stop_reason), point) for point in points]
+    Where the force limit lifts the path (or its press, before it could slide), the spot is too stiff to slide
+    on at this depth: it is read as every pressed spot is, by a discrete palpation there (its force-limited
+    curve, or a bound), and the path goes on a cycle's span further along, touching down again. Else a stiff
+    lump is felt only at its edges, where the paths lift off, and a raster's rows end there."""
+    from palpd.scan import Probe, palpate
+
+    p = settings.palpation
+    thresholds = contact_thresholds(p, getattr(bench.servo.forces, "noise", None), settings.servo.rate_hz)
+    probes, start, end = [], tuple(path[0]), tuple(path[1])
+    while True:
+        task = SlidingPalpation(start, end, p, thresholds)
+        bench.servo.run(task, timeout_s=_timeout_s((start, end), p))
+        rec = task.record
+        probes += [Probe(PalpationRecord(point.xy_mm, point.xy_mm, rec.contact_z_mm, max_force_n=rec.max_force_n,
+                                         stop_reason=rec.stop_reason), point)
+                   for point in stiffness_points(rec, p)]
+        if rec.stop_reason != "force" or rec.contact_z_mm is None:
+            break
+        lifted_at = tuple(rec.xy_mm[-1][:2]) if rec.xy_mm else start
+        probes.append(palpate(bench, settings, lifted_at))
+        start = _onward(lifted_at, end, p.sliding_speed_mm_s / p.modulation_hz)
+        if start is None:
+            break
+    if probes or rec.stop_reason == "stopped":
+        return probes  # stopped before it read anything: not a failed palpation
+    # a named outcome, like a discrete palpation's (the learner and the report need one)
+    record = PalpationRecord(tuple(path[0]), stop_reason=rec.stop_reason or "no_contact")
+    if rec.contact_z_mm is None:
+        return [Probe(record, None, "no contact found", "no_contact")]
+    return [Probe(record, None, f"path too short to read ({rec.stop_reason})", "rejected")]
+
+
+def _onward(xy, end, step_mm: float) -> tuple[float, float] | None:
+    """step_mm further from xy towards end; None when end is no further than that."""
+    left = math.dist(xy, end)
+    if left <= step_mm:
+        return None
+    return tuple(a + (b - a) * step_mm / left for a, b in zip(xy, end))
 
 
 def _timeout_s(path, p) -> float:

@@ -4,12 +4,13 @@ lifts the probe off without sliding on."""
 import json
 import math
 
+import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
 from conftest import SCENES
 from drivers.sim.scene import Scene, load_scene
-from drivers.sim.tissue import SLIP_MM_S, sliding_friction_n
+from drivers.sim.tissue import SLIP_MM_S, StiffnessField, sliding_friction_n
 from palpd.bench import open_simulated_bench
 from palpd.config import Settings
 from palpd.control.sliding import SlidingPalpation
@@ -18,7 +19,7 @@ from palpd.learner.paths import _clipped
 from palpd.errors import ScanFault
 from palpd.scan import palpate
 from palpd.slide import slide
-from palpd.stiffness.sliding import stiffness_points
+from palpd.stiffness.sliding import _cycle_point, _halves_spread, stiffness_points
 from test_faults import Watch
 
 FRICTION = 0.3  # a wet tissue under a smooth probe
@@ -104,6 +105,84 @@ def test_a_slide_pressing_into_tissue_too_stiff_for_its_depth_lifts_at_the_force
     assert bench.world.contact_force_n == 0.0 and bench.world.tip_mm()[2] > 0.0  # lifted off, not pressing
 
 
+def _tared(scene, start_xy):
+    settings = Settings()
+    bench = open_simulated_bench(settings, scene, seed=0)
+    p = settings.palpation
+    bench.servo.start()
+    above = (*start_xy, p.clearance_mm)
+    bench.servo.run(MoveTo(above, p.travel_speed_mm_s, p.accel_mm_s2))
+    tare = HoldAndCollect(p.tare_samples, where=above)
+    bench.servo.run(tare)
+    bench.servo.forces.tare(tare.samples)
+    return settings, bench
+
+
+def test_a_path_stopped_on_a_stiff_edge_states_what_its_last_reading_spans():
+    """stiff-tissue: a path from the 2 N/mm tissue towards the 12 N/mm lump meets the force limit just inside
+    its edge. Its last full cycle ran onto the edge in its final millimetre, and the straight line in s the
+    cycle is fitted with spread that step thin: 2.66 ± 0.08 N/mm where the tissue under the cycle's mean
+    position is 2.0, and active sliding scans drew four false lumps to explain such readings. Every sliding
+    reading must hold the tissue under its position within 3 of its standard errors."""
+    scene = load_scene(SCENES / "stiff-tissue.toml")
+    start, end = (20.67, -8.18), (-10.0, 6.0)
+    settings, bench = _tared(scene, start)
+    probes = slide(bench, settings, (start, end))
+    field = StiffnessField(scene)
+    sliding = [p for p in probes if p.fit is not None and p.fit.model == "sliding-linear"]
+    assert len(sliding) >= 4 and any(p.record.stop_reason == "force" for p in sliding)
+    for probe in sliding:
+        truth = field.k_at(*probe.record.xy_mm)
+        assert abs(probe.stiffness_n_per_mm - truth) <= 3.0 * probe.fit.stiffness_se_n_per_mm, probe.record.xy_mm
+    assert any(field.k_at(*p.record.xy_mm) < 2.1 < p.stiffness_n_per_mm - 0.3 for p in sliding)  # the edge's reading
+
+
+def test_a_row_across_a_lump_too_stiff_to_slide_on_reads_it_and_goes_on_past_it():
+    """A raster row of stiff-tissue meets the force limit at the 12 N/mm lump's edge. It ended there: the lump
+    was felt only at its edges, and a sliding raster said `none` once those readings stated their spread. Now
+    each spot the limit lifts it at is pressed (a discrete palpation, like any pressed spot) and the path
+    touches down a cycle's span further on, until it is past the lump and slides again: the lump's inside is
+    read, the row is read to its end, and no force comes near the safety cap."""
+    scene = load_scene(SCENES / "stiff-tissue.toml")
+    start, end = (-25.0, 6.0), (25.0, 6.0)
+    settings, bench = _tared(scene, start)
+    probes = slide(bench, settings, (start, end))
+    field = StiffnessField(scene)
+    pressed = [p for p in probes if p.fit is None or p.fit.model != "sliding-linear"]
+    inside = [p for p in pressed if field.k_at(*p.record.xy_mm) > 10.0]
+    assert len(inside) >= 3
+    assert all((p.stiffness_n_per_mm or p.stiffness_bound_n_per_mm) > 6.0 for p in inside)
+    assert max(p.record.xy_mm[0] for p in probes if p.fit is not None and p.fit.model == "sliding-linear") > 20.0
+    assert bench.servo.fault is None and bench.world.max_contact_force_n < settings.safety.force_cap_n
+    assert bench.world.contact_force_n == 0.0  # lifted off at the end
+
+
+def test_a_cycle_on_even_tissue_keeps_its_precision():
+    """On even tissue a cycle's two halves differ by their noise alone, and only a difference beyond it widens
+    the reading's error: over many noisy cycles most gain nothing (a χ² of one degree of freedom stays under
+    its mean two times in three) and none gains more than a few times its own noise."""
+    rng = np.random.default_rng(3)
+    t = np.arange(100) / 1000.0
+    depth = 1.5 + 0.5 * np.sin(2.0 * np.pi * 10.0 * t)
+    spreads = np.array([_halves_spread(depth, 2.0 * depth + rng.normal(0.0, 0.01, depth.size)) for _ in range(300)])
+    assert np.mean(spreads == 0.0) > 0.55
+    assert spreads.max() < 0.03  # each half's slope is known to ~0.01 N/mm
+
+
+def test_a_path_whose_press_meets_the_force_limit_is_read_as_pressed_spots_along_it():
+    """Pressed to its sliding depth on 12 N/mm, the force limit comes before the slide can begin. That path was
+    `rejected` (no cycle read); now each spot is read as every pressed spot is, a discrete palpation (its
+    stiffness fitted up to the limit, or a bound), a cycle's span apart along the path."""
+    scene = Scene(name="very-stiff", tissue={"stiffness_n_per_mm": 12.0})
+    settings, bench = _tared(scene, (0.0, 0.0))
+    probes = slide(bench, settings, ((0.0, 0.0), (20.0, 0.0)))
+    p = settings.palpation
+    assert len(probes) == math.ceil(20.0 / (p.sliding_speed_mm_s / p.modulation_hz))
+    assert all(probe.outcome in ("fit", "too_stiff") for probe in probes)
+    assert all((probe.stiffness_n_per_mm or probe.stiffness_bound_n_per_mm) > 6.0 for probe in probes)
+    assert bench.servo.fault is None and bench.world.contact_force_n == 0.0
+
+
 def test_a_scan_a_safety_fault_cut_short_claims_no_count():
     """0.3 N of noise: a sliding raster's fourth path went past the indentation limit and the fault ended the
     scan after a few rows, with "none" claimed for the whole tissue from them (a wrong count: the lump lay in
@@ -153,13 +232,16 @@ def test_a_planned_path_passes_through_the_spot_asked_for_and_stays_on_the_tissu
     assert min(math.dist(spot, (x0, y0)), math.dist(spot, (x1, y1))) <= span + 1e-9  # between its ends
 
 
-def test_a_sliding_scan_says_when_its_paths_lifted_at_the_force_limit(run_cli, tmp_path):
-    """A slide lifts off at max_force_n and reads nothing past it (the stiff-tissue lump, 12 N/mm in 2 N/mm, is
-    too stiff to slide across at sliding_depth_mm ± modulation_mm): the report counts such paths and the CLI
-    says what it means, in one line, instead of leaving lumps placed at the lift-off points unremarked."""
+def test_a_sliding_scan_says_when_its_paths_met_the_force_limit(run_cli, tmp_path):
+    """The stiff-tissue lump, 12 N/mm in 2 N/mm, is too stiff to slide across at sliding_depth_mm ±
+    modulation_mm: the report counts the paths that met the limit, and the CLI says in one line what was done
+    about it (the spots pressed instead, the path going on past them) and what it costs."""
     report = tmp_path / "report.json"
     result = run_cli("scan", "--scene", SCENES / "stiff-tissue.toml", "--strategy", "raster", "--max-palpations", "3",
                      "--palpation", "sliding", "--quiet", "--report", report)
-    assert json.loads(report.read_text())["paths_lifted_at_force_limit"] == 1  # the middle row of three
-    warnings = [line for line in result.stderr.splitlines() if "warning" in line]
-    assert len(warnings) == 1 and "lifted off before their end" in warnings[0] and "Traceback" not in result.stderr
+    body = json.loads(report.read_text())
+    assert body["paths_lifted_at_force_limit"] == 1  # the middle row of three
+    assert any(probe["stiffness_model"] != "sliding-linear" and probe["stiffness_n_per_mm"] > 6.0
+               for probe in body["probes"] if probe["outcome"] == "fit")  # the lump pressed
+    notes = [line for line in result.stderr.splitlines() if "force limit" in line]
+    assert len(notes) == 1 and "pressed instead" in notes[0] and "Traceback" not in result.stderr

@@ -76,10 +76,10 @@ def run(args) -> int:
         plot_scan(report, scene.tissue.size_mm, args.plot, posterior_of(planner, report, settings, scene.tissue.size_mm))
         _say(args, f"map written to {args.plot}")
     if report.get("paths_lifted_at_force_limit"):
-        print(f"palpd: warning: {report['paths_lifted_at_force_limit']} sliding path(s) met the force limit "
-              f"({settings.palpation.max_force_n:g} N) and lifted off before their end, so the tissue past that "
-              f"point was not read and lumps may be placed at its edge: use discrete palpation there "
-              f"(--palpation discrete) or a shallower palpation.sliding_depth_mm", file=sys.stderr)
+        print(f"palpd: note: {report['paths_lifted_at_force_limit']} sliding path(s) met the force limit "
+              f"({settings.palpation.max_force_n:g} N): each spot too stiff to slide on was pressed instead (a "
+              f"discrete palpation) and the path touched down again past it, which costs robot time; a shallower "
+              f"palpation.sliding_depth_mm slides across such spots", file=sys.stderr)
     if report["faults"]:
         fault = report["faults"][0]
         print(f"palpd: scan stopped by a safety fault ({fault['code']}): {fault['message']}", file=sys.stderr)

@@ -52,6 +52,7 @@ class SlidingPalpation:
         self._path: LinearMove | None = None
         self._t0 = self._last_t = 0.0
         self._winding_down = False
+        self.jumped = False  # the setpoint jumped this tick (a release): the servo reads no velocity into it
         self.done = False
 
     def wind_down(self) -> None:
@@ -95,7 +96,7 @@ class SlidingPalpation:
         supervisor's 6 N cap: a force_cap fault ended the scan)."""
         goal = self.record.contact_z_mm - self.s.sliding_depth_mm
         if tick.normal_force_n >= self.s.max_force_n:
-            self._lift("force")
+            self._lift("force", tick)
             return self._setpoint()
         if at_floor(tick, self.s.speed_mm_s):  # the contact was read late (or the sensor lies): not past the floor
             self._lift("floor")
@@ -122,7 +123,7 @@ class SlidingPalpation:
 
     def _stopped_by(self, tick) -> bool:
         if tick.normal_force_n >= self.s.max_force_n:
-            self._lift("force")
+            self._lift("force", tick)
         elif at_floor(tick):
             self._lift("floor")
         elif self._filtered_n < self.contact.off_n:
@@ -138,8 +139,13 @@ class SlidingPalpation:
         r.max_force_n = max(r.max_force_n, tick.normal_force_n)
         r.max_lateral_n = max(r.max_lateral_n, math.hypot(*tick.force_tissue_n[:2]))
 
-    def _lift(self, reason: str) -> None:
-        """Straight up along the normal from the setpoint: the probe leaves the tissue before it moves on."""
+    def _lift(self, reason: str, tick=None) -> None:
+        """Straight up along the normal from the setpoint: the probe leaves the tissue before it moves on. At the
+        force limit the setpoint first jumps up to the tip, as a discrete press's release does
+        (control.palpation): below the tip, its lead is all push on a spot too stiff to give way, and a lift
+        that began there pressed on while it climbed back (5.9 N on a 12 N/mm lump, the limit 4 N)."""
+        if reason == "force" and tick is not None and tick.tip_mm[2] > self._z:
+            self._z, self.jumped = tick.tip_mm[2], True
         self.record.stop_reason, self._phase = reason, "retract"
         up = (*self._xy, self.s.clearance_mm)
         self._task = MoveTo(up, self.s.approach_speed_mm_s, self.s.accel_mm_s2, start=self._setpoint())
