@@ -56,6 +56,29 @@ def test_a_sliding_scan_set_in_the_config_runs_through_the_daemon(tmp_path):
     assert replayed.returncode == 0 and "the recorded estimate is reproduced" in replayed.stdout, replayed.stdout
 
 
+def test_a_sliding_scan_presses_the_spots_too_stiff_to_slide_on_journals_them_and_replays(tmp_path):
+    """stiff-tissue's 12 N/mm lump stops every row that meets it at the force limit: the daemon's slide presses
+    each such spot (a discrete palpation within the path) and goes on; those presses are journaled with their
+    path like its cycles, and `palpd replay` cuts them again from the raw samples to the same estimate."""
+    daemon = Daemon(tmp_path, scene="stiff-tissue.toml", env={"PALPD_PALPATION__MODE": json.dumps("sliding")})
+    try:
+        daemon.start().wait_for(lambda s: s["state"] == "ready", what="ready")
+        subscriber = daemon.subscriber()
+        assert daemon.call("scan.start", {"strategy": "raster", "max_palpations": 3})["ok"]
+        collect_until_done(subscriber)
+        status = daemon.wait_for(lambda s: s["state"] == "ready", what="scan end")
+    finally:
+        daemon.close()
+    session = daemon.state_dir / "sessions" / status["session"]
+    entries = read_journal(session / "journal.jsonl")
+    assert {e["path"] for e in entries} == {0, 1, 2} and {e["palpation"] for e in entries} == {"sliding"}
+    pressed = [e for e in entries if e["stop_reason"] == "force" and (e["stiffness_n_per_mm"] or 0.0) > 6.0]
+    assert len(pressed) >= 3  # the middle row, across the lump
+    replayed = subprocess.run([sys.executable, "-m", "palpd", "replay", str(session)], capture_output=True, text=True)
+    assert replayed.returncode == 0 and "the recorded estimate is reproduced" in replayed.stdout, replayed.stdout
+    assert "re-segmented from raw samples" in replayed.stdout
+
+
 def samples_of(recording) -> list[dict]:
     return [p for t, p in read_messages(recording) if t == "samples"] if recording.exists() else []
 
