@@ -183,7 +183,7 @@ def test_a_path_whose_press_meets_the_force_limit_is_read_as_pressed_spots_along
     assert bench.servo.fault is None and bench.world.contact_force_n == 0.0
 
 
-@settings(max_examples=8, deadline=None)
+@settings(max_examples=6, deadline=None)
 @given(st.floats(3.0, 80.0), st.floats(0.5, 6.0), st.floats(-8.0, 8.0))
 def test_a_path_across_a_lump_of_any_stiffness_ends_lifted_without_a_fault(lump_n_per_mm, tissue_n_per_mm, offset_mm):
     """Extremes through the simulator: from a lump a little stiffer than its tissue to one 80 N/mm in soft
@@ -192,11 +192,11 @@ def test_a_path_across_a_lump_of_any_stiffness_ends_lifted_without_a_fault(lump_
     cycle's span apart at most, so a path is never read more densely than its cycles would read it."""
     scene = Scene(name="lump", tissue={"stiffness_n_per_mm": tissue_n_per_mm},
                   lump=[{"center_mm": [0.0, offset_mm], "radius_mm": 6.0, "stiffness_n_per_mm": lump_n_per_mm}])
-    settings, bench = _tared(scene, (-20.0, 0.0))
-    probes = slide(bench, settings, ((-20.0, 0.0), (20.0, 0.0)))
+    settings, bench = _tared(scene, (-12.0, 0.0))
+    probes = slide(bench, settings, ((-12.0, 0.0), (12.0, 0.0)))
     p = settings.palpation
     pressed = [probe for probe in probes if probe.fit is None or probe.fit.model != "sliding-linear"]
-    assert len(pressed) <= math.ceil(40.0 / (p.sliding_speed_mm_s / p.modulation_hz)) + 1
+    assert len(pressed) <= math.ceil(24.0 / (p.sliding_speed_mm_s / p.modulation_hz)) + 1
     assert all(probe.outcome in ("fit", "too_stiff", "too_soft", "rejected", "no_contact") for probe in probes)
     assert bench.servo.fault is None and bench.world.max_contact_force_n < settings.safety.force_cap_n
     assert bench.world.contact_force_n == 0.0
