@@ -20,6 +20,7 @@ from palpd.control.sliding import SlidingPalpation
 from palpd.stiffness.sliding import stiffness_points
 
 RASTER_ROWS_MIN = 2
+MIN_STEP_MM = 0.5  # pressed spots along a path, at least this far apart
 
 
 def slide(bench, settings, path) -> list:
@@ -45,7 +46,7 @@ def slide(bench, settings, path) -> list:
             break
         lifted_at = tuple(rec.xy_mm[-1][:2]) if rec.xy_mm else start
         probes.append(palpate(bench, settings, lifted_at))
-        start = _onward(lifted_at, end, p.sliding_speed_mm_s / p.modulation_hz)
+        start = _onward(lifted_at, end, _step_mm(settings))
         if start is None:
             break
     if probes or rec.stop_reason == "stopped":
@@ -55,6 +56,14 @@ def slide(bench, settings, path) -> list:
     if rec.contact_z_mm is None:
         return [Probe(record, None, "no contact found", "no_contact")]
     return [Probe(record, None, f"path too short to read ({rec.stop_reason})", "rejected")]
+
+
+def _step_mm(settings) -> float:
+    """How far on a path touches down again past a pressed spot: a cycle's span (the spacing of its readings),
+    but no closer than the learner presses spots apart (learner.min_spacing_mm), nor than MIN_STEP_MM: at a
+    slow slide a cycle spans micrometres, and a path across a stiff lump would be pressed to no end."""
+    p = settings.palpation
+    return max(p.sliding_speed_mm_s / p.modulation_hz, settings.learner.min_spacing_mm, MIN_STEP_MM)
 
 
 def _onward(xy, end, step_mm: float) -> tuple[float, float] | None:

@@ -202,6 +202,18 @@ def test_a_path_across_a_lump_of_any_stiffness_ends_lifted_without_a_fault(lump_
     assert bench.world.contact_force_n == 0.0
 
 
+def test_a_slow_path_over_tissue_too_stiff_to_slide_on_is_pressed_a_spacing_apart_not_without_end():
+    """At 0.01 mm/s and 10 Hz a cycle spans a micrometre: stepping on by a cycle's span past each pressed spot,
+    a 6 mm path over 12 N/mm tissue would have been pressed some 6000 times. The spots are the learner's
+    minimum spacing apart (1.5 mm) at least."""
+    scene = Scene(name="very-stiff", tissue={"stiffness_n_per_mm": 12.0})
+    settings, bench = _tared(scene, (0.0, 0.0))
+    settings = settings.updated(palpation={"sliding_speed_mm_s": 0.01})
+    probes = slide(bench, settings, ((0.0, 0.0), (6.0, 0.0)))
+    assert 2 <= len(probes) <= math.ceil(6.0 / settings.learner.min_spacing_mm)
+    assert all(probe.outcome in ("fit", "too_stiff") for probe in probes)
+
+
 def test_a_scan_a_safety_fault_cut_short_claims_no_count():
     """0.3 N of noise: a sliding raster's fourth path went past the indentation limit and the fault ended the
     scan after a few rows, with "none" claimed for the whole tissue from them (a wrong count: the lump lay in
