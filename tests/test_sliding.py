@@ -269,10 +269,12 @@ def test_a_sliding_scan_says_when_its_paths_met_the_force_limit(run_cli, tmp_pat
     about it (the spots pressed instead, the path going on past them) and what it costs."""
     report = tmp_path / "report.json"
     result = run_cli("scan", "--scene", SCENES / "stiff-tissue.toml", "--strategy", "raster", "--max-palpations", "3",
-                     "--palpation", "sliding", "--quiet", "--report", report)
+                     "--palpation", "sliding", "--report", report)
     body = json.loads(report.read_text())
     assert body["paths_lifted_at_force_limit"] == 1  # the middle row of three
     assert any(probe["stiffness_model"] != "sliding-linear" and probe["stiffness_n_per_mm"] > 6.0
                for probe in body["probes"] if probe["outcome"] == "fit")  # the lump pressed
     notes = [line for line in result.stderr.splitlines() if "force limit" in line]
     assert len(notes) == 1 and "pressed instead" in notes[0] and "Traceback" not in result.stderr
+    pressed_lines = [line for line in result.stderr.splitlines() if line.endswith("(pressed: too stiff to slide on)")]
+    assert len(pressed_lines) == sum("contact_xy_mm" in probe for probe in body["probes"]) >= 3  # the presses

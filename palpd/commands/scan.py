@@ -64,8 +64,8 @@ def run(args) -> int:
         _say(args, f"scan of scene {scene.name!r}: {settings.scan.strategy}, up to {planner.expected_total} "
                    f"{'palpations' if p.mode == 'discrete' else 'paths'}, {how}")
 
-    report, planner = run_simulated_scan(settings, scene, _progress_printer(args), args.realtime,
-                                         args.max_palpations, started)
+    printer = _progress_printer(args, settings.palpation.mode == "sliding")
+    report, planner = run_simulated_scan(settings, scene, printer, args.realtime, args.max_palpations, started)
     _say(args, _summary(report), always=True)
     if args.report:
         write_json(args.report, report)
@@ -109,12 +109,14 @@ def _note_raster(settings, budget: int | None) -> None:
             print(f"palpd: {note}", file=sys.stderr, flush=True)
 
 
-def _progress_printer(args):
+def _progress_printer(args, sliding: bool = False):
     def show(done: int, total: int, probe) -> None:
         x, y = probe.record.xy_mm
         k = f"{probe.outcome}: {probe.rejected}" if probe.fit is None else f"k = {probe.stiffness_n_per_mm:.3f} N/mm"
         if probe.stiffness_bound_n_per_mm is not None:
             k += f" (k {'≥' if probe.outcome == 'too_stiff' else '≤'} {probe.stiffness_bound_n_per_mm:.3g} N/mm)"
+        if sliding and probe.record.contact:  # a discrete palpation within a path: a spot too stiff to slide on
+            k += "  (pressed: too stiff to slide on)"
         _say(args, f"[{done:3d}/{total}] ({x:6.1f}, {y:6.1f}) mm  {k}")
 
     return show
