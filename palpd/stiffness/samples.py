@@ -96,15 +96,19 @@ def _checked(d: np.ndarray, f: np.ndarray, rate: np.ndarray | None) -> Samples:
 def check_rise(samples: Samples) -> None:
     """Reject force that does not rise with depth, judged on a plain straight line."""
     d, f, _ = samples.scaled()
-    dc = d - d.mean()
-    sxx = float(dc @ dc)
-    slope = float(dc @ (f - f.mean())) / sxx
-    resid = f - f.mean() - slope * dc
-    dof = max(d.size - 2, 1)
-    se = float(np.sqrt(max(float(resid @ resid) / dof, 0.0) / sxx))
+    slope, se = straight_slope(d, f)
     t = slope / se if se > 0 else np.inf * np.sign(slope)
     physical = slope * samples.force_scale_n / samples.depth_scale_mm
     if t < -MIN_SLOPE_T:
         raise FitRejected(f"force does not rise with depth: it falls (slope {physical:.3g} N/mm), reversed loading", "reversed")
     if not t > MIN_SLOPE_T:
         raise FitRejected(f"force does not rise with depth (slope {physical:.3g} N/mm, t = {t:.2g})", "no_rise")
+
+
+def straight_slope(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """The least-squares slope of y on x (x not constant) and its standard error."""
+    xc = x - x.mean()
+    sxx = float(xc @ xc)
+    slope = float(xc @ (y - y.mean())) / sxx
+    residual = y - y.mean() - slope * xc
+    return slope, float(np.sqrt(max(float(residual @ residual) / max(x.size - 2, 1), 0.0) / sxx))

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from palpd.stiffness.samples import straight_slope
+
 MIN_SAMPLES = 20
 MIN_SWING_FRACTION = 0.5  # a cycle must sweep at least this share of the commanded ±modulation
 
@@ -91,11 +93,8 @@ def _slope(depth, force) -> tuple[float, float] | None:
     """The least-squares slope of force on depth and its variance; None where it cannot be read."""
     if len(depth) < MIN_SAMPLES // 2 or np.ptp(depth) <= 0.0:
         return None
-    centred = depth - depth.mean()
-    sxx = float(centred @ centred)
-    slope = float(centred @ (force - force.mean())) / sxx
-    residual = force - force.mean() - slope * centred
-    return slope, float(residual @ residual) / (len(depth) - 2) / sxx
+    slope, se = straight_slope(depth, force)
+    return slope, se * se
 
 
 def _along_path(xy) -> np.ndarray:
