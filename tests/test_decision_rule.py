@@ -55,7 +55,7 @@ def test_p_lump_is_the_posterior_weighted_average_over_the_hypotheses():
     learner = learn(field([((7.5, -4.0), 10.0, 3.0, 0.8)]), budget=14, grid=31)
     assert learner.choice.chosen == "circles:1"
     fit = learner.chosen_fit()
-    own = maps.inside_probability(fit, learner.grid_xy)
+    own = maps.inside_probability(fit, learner.xs, learner.ys)
     learner.choice.shares.clear()
     learner.choice.shares.update({"circles:1": 0.6, "none": 0.4})
     learner._cache.clear()

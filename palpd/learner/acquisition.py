@@ -31,7 +31,7 @@ from palpd.learner.describe import quantities
 def moments(fit, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A parametric fit's predicted log stiffness at xy, its linearised variance and its gradient."""
     f, jac = shapes.evaluate(fit.family, fit.theta, xy)
-    return f, ((jac @ fit.cov) * jac).sum(axis=1), jac
+    return f, shapes.row_variances(jac, fit.cov), jac
 
 
 def boundary_gain(fit, xy: np.ndarray, noise_var: float, size_mm=None) -> np.ndarray:
@@ -41,7 +41,7 @@ def boundary_gain(fit, xy: np.ndarray, noise_var: float, size_mm=None) -> np.nda
     if len(w) == 0:
         return np.zeros(len(xy))
     projected = jac @ (fit.cov @ w.T)  # (cells × quantities): cov(quantity, reading)
-    return (projected**2).sum(axis=1) / (var + noise_var)
+    return np.einsum("ij,ij->i", projected, projected) / (var + noise_var)
 
 
 def boundary_variance_gain(cov: np.ndarray, weights: np.ndarray, var: np.ndarray, noise_var: float) -> np.ndarray:

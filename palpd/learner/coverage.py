@@ -15,6 +15,7 @@ These say where to probe first.
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -51,7 +52,7 @@ def _within(fit, params: np.ndarray, readings_xy: np.ndarray, rho: float, spacin
     if fit.family.kind == "ellipses":
         _, minor, _ = shapes.axes_and_angle(params, True)
         return np.hypot(*(readings_xy - params[:2]).T) <= max(rho * minor, spacing_mm)
-    lr2, _ = shapes.log_rho2(params, readings_xy, False)
+    lr2, _ = shapes.log_rho2(params, readings_xy, False, derivatives=False)
     return lr2 <= 2.0 * math.log(max(rho, spacing_mm / math.exp(params[2])))
 
 
@@ -110,7 +111,7 @@ def _edge_gaps(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float):
     half = np.asarray(size_mm, dtype=float) / 2.0
     for params in lump_params(fit):
         ellipse = fit.family.kind == "ellipses"
-        lr2, _ = shapes.log_rho2(params, readings_xy, ellipse)
+        lr2, _ = shapes.log_rho2(params, readings_xy, ellipse, derivatives=False)
         widen = spacing_mm / math.exp(params[2])
         inner = shapes.rho_at(params, -EDGE_LEVEL) - widen
         outer = shapes.rho_at(params, EDGE_LEVEL) + widen
@@ -170,6 +171,17 @@ def satellite_hole(discs, readings: "Readings", reach: float, spacing_mm: float)
     return cells_xy[np.flatnonzero(hole)[int(np.argmax(distance[hole]))]]
 
 
+@functools.lru_cache(maxsize=8)
+def _unfelt_radii(low_mm: float, high_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """The radii the unfelt area is summed over (UNFELT_RADII, log-spaced over the range) and the mean π r²
+    over the radii below each (index i: the first i); the same for every update of a scan, so made once."""
+    radii = np.exp(np.linspace(math.log(low_mm), math.log(high_mm), UNFELT_RADII))
+    radii.flags.writeable = False
+    below = np.concatenate([[0.0], np.cumsum(math.pi * radii**2)]) / UNFELT_RADII
+    below.flags.writeable = False
+    return radii, below
+
+
 def lump_params(fit) -> list[np.ndarray]:
     """Each lump's parameters of a parametric fit ([cx, cy, log R, ...], shapes.py)."""
     return [fit.theta[fit.family.lump_slice(j)] for j in range(fit.family.k)]
@@ -202,7 +214,7 @@ def near_edges(fit, xy: np.ndarray, spacing_mm: float) -> np.ndarray:
     reported centre or radius, so the only places worth scoring for them."""
     near = np.zeros(len(xy), dtype=bool)
     for params in lump_params(fit):
-        lr2, _ = shapes.log_rho2(params, xy, fit.family.kind == "ellipses")
+        lr2, _ = shapes.log_rho2(params, xy, fit.family.kind == "ellipses", derivatives=False)
         widen = 2.0 * spacing_mm / math.exp(params[2])
         inner = shapes.rho_at(params, -EDGE_LEVEL) - widen
         outer = shapes.rho_at(params, EDGE_LEVEL) + widen
@@ -220,7 +232,8 @@ class Readings:
         self.distance_mm = np.full(len(cells_xy), np.inf)
         self.probe_distance_mm = np.full(len(cells_xy), np.inf)  # to any palpation, with a reading or not
         self.spacing_mm = spacing_mm
-        self._spots: list[tuple[float, float]] = []
+        self._spots = np.empty((0, 2))  # grown by doubling; the first `spots` rows are the spots
+        self._spot_count = 0
 
     def probed(self, xy) -> None:
         """A palpation there, whatever came of it: a spot where one gave no reading would give none again."""
@@ -232,12 +245,16 @@ class Readings:
         x, y = float(xy[0]), float(xy[1])
         np.minimum(self.distance_mm, np.hypot(self.cells_xy[:, 0] - x, self.cells_xy[:, 1] - y), out=self.distance_mm)
         np.minimum(self.probe_distance_mm, self.distance_mm, out=self.probe_distance_mm)
-        if all(math.dist((x, y), spot) >= self.spacing_mm for spot in self._spots):
-            self._spots.append((x, y))
+        spots = self._spots[:self._spot_count]
+        if not len(spots) or np.min(np.hypot(spots[:, 0] - x, spots[:, 1] - y)) >= self.spacing_mm:
+            if self._spot_count == len(self._spots):
+                self._spots = np.resize(self._spots, (max(16, 2 * len(self._spots)), 2))
+            self._spots[self._spot_count] = (x, y)
+            self._spot_count += 1
 
     @property
     def spots(self) -> int:
-        return len(self._spots)
+        return self._spot_count
 
     def unfelt_area_mm2(self, expected_lumps: float, radius_range_mm: tuple[float, float]) -> float:
         """The expected area of the lumps no reading has felt: what the tissue may still hold beside the lumps
@@ -272,14 +289,13 @@ class Readings:
                          radius_range_mm: tuple[float, float]) -> np.ndarray:
         """Each cell's part of the unfelt area, given its distance to the nearest reading: expected_lumps over
         the cells, times the mean over the radii of π r² for every radius it is farther than."""
-        radii = np.exp(np.linspace(math.log(radius_range_mm[0]), math.log(radius_range_mm[1]), UNFELT_RADII))
-        below = np.concatenate([[0.0], np.cumsum(math.pi * radii**2)]) / UNFELT_RADII  # mean π r² over radii < d
+        radii, below = _unfelt_radii(*radius_range_mm)
         hidden = below[np.searchsorted(radii, distance_mm, side="left")]
         return expected_lumps * hidden / len(self.cells_xy)
 
     def farthest_beyond(self, reach_mm: float) -> tuple[float, float] | None:
         """The cell farthest from every reading, if it is beyond `reach_mm` (None before any reading)."""
-        if not self._spots:
+        if not self._spot_count:
             return None
         far = int(np.argmax(self.distance_mm))
         return tuple(map(float, self.cells_xy[far])) if self.distance_mm[far] > reach_mm else None

@@ -7,6 +7,7 @@ before the rule holds is the verdict `undetermined`, never "no lump".
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -235,7 +236,14 @@ class Decision:
         fit = self.chosen_fit()
         if fit is None or fit.family.k == 0:
             return True  # the free-form map or `none`: no centre or radius reported from parameters
-        return self._settled_before and self._moved_within_sds(fit)
+        return self._settled_before and self._chosen_moved_within_sds()
+
+    def _chosen_moved_within_sds(self) -> bool:
+        """`_moved_within_sds` of the chosen fit, once an update: the stop rule asks it, and the next reading
+        asks it again of the same two fits (whether the reading before it settled the estimate)."""
+        if "moved" not in self._cache:
+            self._cache["moved"] = self._moved_within_sds(self.chosen_fit())
+        return self._cache["moved"]
 
     def _moved_within_sds(self, fit: Fit | None) -> bool:
         """The newest reading moved no reported centre coordinate or radius of `fit` (the chosen fit after
@@ -250,7 +258,7 @@ class Decision:
             return _moved_within(_discs(before), _discs(fit), self.settings.tolerance_mm)
         rows = describe.quantities(before, self.size_mm)
         moved = np.abs(rows @ (fit.theta - before.theta))
-        sd_before = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", rows, before.cov, rows), 0.0))
+        sd_before = np.sqrt(np.maximum(shapes.row_variances(rows, before.cov), 0.0))
         return bool(np.all(moved <= max(1.0, abs(self.surprise_sd)) * sd_before)
                     and np.all(moved <= self.settings.tolerance_mm))
 
@@ -379,7 +387,7 @@ class Decision:
         if self.choice is None or self.choice.chosen == "free-form" or not self.probed:
             return None
         chosen = _discs(self.chosen_fit())
-        probes = np.asarray(self.probed)
+        probes = None  # made only when a rival's lump asks (it is a copy of every palpation so far)
         half = np.asarray(self.size_mm) / 2.0
         for name, weight in sorted(self.choice.weights.items(), key=lambda kv: -kv[1]):
             if name == self.choice.chosen or weight < MIN_WEIGHT or name not in self.hypotheses.fits:
@@ -390,6 +398,7 @@ class Decision:
                 spot = np.clip(centre, -half, half)
                 if math.dist(spot, centre) >= radius:
                     continue  # off the tissue
+                probes = np.asarray(self.probed) if probes is None else probes
                 if np.min(np.hypot(*(probes - spot).T)) >= max(radius, self.settings.min_spacing_mm):
                     return spot
         return None
@@ -558,12 +567,17 @@ class Decision:
         hole = self._unfelt_hole() if stands else None
         if hole is not None:  # all else holds but for lumps a hole between the readings could hide
             return hole
-        cells = self._candidates()
-        score = self._score(cells)
+        cells, cells_xy = self._probe_cells
+        score = self._score(cells, cells_xy)
         here = self.probed[-1] if self.probed else None
-        best = acquisition.best_candidate(score, self.grid_xy[cells], self.blocked[cells], here,
-                                          self.travel_mm_per_palpation)
+        best = acquisition.best_candidate(score, cells_xy, self.blocked[cells], here, self.travel_mm_per_palpation)
         return best if best is not None else self._farthest_from_probes()
+
+    @functools.cached_property
+    def _probe_cells(self) -> tuple[np.ndarray, np.ndarray]:
+        """The cells a probe is chosen among (`_candidates`) and where they are: the grid is fixed, so once."""
+        cells = self._candidates()
+        return cells, self.grid_xy[cells]
 
     def _candidates(self, stride_mm: float = CANDIDATE_STRIDE_MM) -> np.ndarray:
         step = max(1, int(stride_mm / (self.xs[1] - self.xs[0])))
@@ -572,13 +586,16 @@ class Decision:
         return (rows[:, None] * len(self.xs) + cols[None, :]).ravel()
 
     def _noise_var(self) -> float:
-        fit = self.chosen_fit()
-        extra = fit.noise_sd if fit is not None else self.noise_floor
-        return float(np.median(self.obs.sd**2)) + extra**2 if self.obs.n else extra**2
+        """A reading's noise variance as the scores weigh it: the readings' median one and the chosen fit's σ_w
+        (once an update)."""
+        if "noise var" not in self._cache:
+            fit = self.chosen_fit()
+            extra = fit.noise_sd if fit is not None else self.noise_floor
+            self._cache["noise var"] = float(np.median(self.obs.sd**2)) + extra**2 if self.obs.n else extra**2
+        return self._cache["noise var"]
 
-    def _score(self, cells: np.ndarray) -> np.ndarray:
-        """What a reading at each cell is worth (see acquisition.py for the why of each)."""
-        xy = self.grid_xy[cells]
+    def _score(self, cells: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        """What a reading at each cell (at xy) is worth (see acquisition.py for the why of each)."""
         if self.choice is None:
             return self.gp.var[cells]
         if self.choice.weight < self.settings.confidence:
@@ -605,11 +622,12 @@ class Decision:
                 return 1.0 / (1.0 + np.hypot(xy[:, 0] - target[0], xy[:, 1] - target[1]))
             score = np.zeros(len(xy))
             near = coverage.near_edges(fit, xy, self.settings.min_spacing_mm)  # where a centre or radius is read
+            near_xy = xy[near]
             # where to probe by the Laplace covariance: its widest directions are where the posterior
             # is still unexplored (checked, they are narrow only along the line that was looked at)
             laplace = self.hypotheses.laplace(self.choice.chosen)
-            gain = acquisition.boundary_gain(laplace, xy[near], self._noise_var(), self.size_mm)
-            score[near] = gain * self._readable(laplace, xy[near])
+            gain = acquisition.boundary_gain(laplace, near_xy, self._noise_var(), self.size_mm)
+            score[near] = gain * self._readable(laplace, near_xy)
             return score
         gain = self._free_form_boundary_gain(cells)
         if gain is not None:
@@ -699,14 +717,11 @@ def _perimeter_mm(polygon: np.ndarray, half: np.ndarray | None = None) -> float:
     made a cut lump's expected boundary error look 2-3x smaller than it was)."""
     if len(polygon) < 2:
         return 0.0
-    step = np.roll(polygon, -1, axis=0) - polygon
-    lengths = np.hypot(*step.T)
-    if half is not None:
-        ends = (polygon, np.roll(polygon, -1, axis=0))
-        on_edge = np.zeros(len(polygon), dtype=bool)
-        for axis in (0, 1):
-            for side in (-1.0, 1.0):
-                on_edge |= np.all([np.abs(end[:, axis] - side * half[axis]) < 1e-6 for end in ends], axis=0)
+    following = np.roll(polygon, -1, axis=0)
+    lengths = np.hypot(*(following - polygon).T)
+    if half is not None:  # a side whose two ends lie on the same side of the tissue's edge runs along it
+        on = np.abs(np.abs(polygon) - half) < 1e-6
+        on_edge = (on & np.roll(on, -1, axis=0) & ((polygon > 0.0) == (following > 0.0))).any(axis=1)
         lengths = lengths[~on_edge]
     return float(lengths.sum())
 

@@ -434,7 +434,7 @@ def _shared_area(a: np.ndarray, b: np.ndarray, ellipse: bool) -> float:
     c, s = math.cos(math.radians(angle)), math.sin(math.radians(angle))
     ex, ey = major * _UNIT_DISC[:, 0], minor * _UNIT_DISC[:, 1]
     points = np.column_stack([small[0] + c * ex - s * ey, small[1] + s * ex + c * ey])
-    return float((shapes.log_rho2(other, points, ellipse)[0] < 0.0).mean())
+    return float((shapes.log_rho2(other, points, ellipse, derivatives=False)[0] < 0.0).mean())
 
 
 def _sunflower(n: int) -> np.ndarray:

@@ -29,8 +29,8 @@ class PosteriorGrid:
 
 def parametric(fit, xs: np.ndarray, ys: np.ndarray, grid_xy: np.ndarray) -> PosteriorGrid:
     f, jac = shapes.evaluate(fit.family, fit.theta, grid_xy)
-    var = ((jac @ fit.cov) * jac).sum(axis=1)
-    p = inside_probability(fit, grid_xy)
+    var = shapes.row_variances(jac, fit.cov)
+    p = inside_probability(fit, xs, ys)
     return _grid(xs, ys, f, var, p)
 
 
@@ -39,36 +39,39 @@ def from_log_field(xs, ys, mean_log: np.ndarray, var_log: np.ndarray, tau_log: n
     return _grid(xs, ys, mean_log, var_log, p)
 
 
-def inside_probability(fit, xy: np.ndarray) -> np.ndarray:
-    """P(ρ_j < 1) of the lump felt most at each point (0 for `none`). Computed only within each lump's reach
-    (`_reach_mm`), beyond which it is below Φ(−5) whatever the posterior: over a 121² grid the whole map cost
-    ~4 ms an update, and the stop rule asks for it at every one."""
+def inside_probability(fit, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """P(ρ_j < 1) of the lump felt most at each cell of the (len(ys) × len(xs), row-major) grid, flattened (0
+    for `none`). Computed only within each lump's reach (`_reach_mm`), beyond which it is below Φ(−5)
+    whatever the posterior, and that reach looked for only in the window of rows and columns that can hold
+    it (as acquisition.block_near does): over a 121² grid the whole map cost ~4 ms an update, and the stop
+    rule asks for it at every one."""
     family = fit.family
-    p = np.zeros(len(xy))
+    near = np.zeros((len(ys), len(xs)), dtype=bool)
     if family.k == 0:
-        return p
+        return near.ravel().astype(float)
     ellipse = family.kind == "ellipses"
-    near = np.zeros(len(xy), dtype=bool)
     for j in range(family.k):
         params = fit.theta[family.lump_slice(j)]
         reach = _reach_mm(params, fit.cov[family.lump_slice(j), family.lump_slice(j)], ellipse)
-        dx, dy = xy[:, 0] - params[0], xy[:, 1] - params[1]
-        box = np.flatnonzero((np.abs(dx) <= reach) & (np.abs(dy) <= reach))  # the distance only where it may be in reach
-        near[box[np.hypot(dx[box], dy[box]) <= reach]] = True
-    if not near.any():
+        cols = slice(np.searchsorted(xs, params[0] - reach), np.searchsorted(xs, params[0] + reach, side="right"))
+        rows = slice(np.searchsorted(ys, params[1] - reach), np.searchsorted(ys, params[1] + reach, side="right"))
+        near[rows, cols] |= np.hypot(xs[None, cols] - params[0], ys[rows, None] - params[1]) <= reach
+    p = np.zeros(near.size)
+    at = np.flatnonzero(near)
+    if not len(at):
         return p
-    xy_near = xy[near]
-    heights = shapes.heights_of(family, fit.theta, xy_near)
-    top = np.argmax(heights, axis=1)
+    xy_near = np.column_stack([xs[at % len(xs)], ys[at // len(xs)]])
+    # the lump felt most at each cell: with one lump, that one (its heights need not be computed)
+    top = np.zeros(len(at), dtype=int) if family.k == 1 else np.argmax(shapes.heights_of(family, fit.theta, xy_near), axis=1)
     p_near = np.zeros(len(xy_near))
     for j in range(family.k):
         rows = top == j
         part = family.lump_slice(j)
         lr2, d = shapes.log_rho2(fit.theta[part], xy_near[rows], ellipse)
         cov = fit.cov[part, part][: d.shape[1], : d.shape[1]]
-        sd = np.sqrt(np.maximum(((d @ cov) * d).sum(axis=1), 1e-12))
+        sd = np.sqrt(np.maximum(shapes.row_variances(d, cov), 1e-12))
         p_near[rows] = ndtr(-lr2 / sd)
-    p[near] = p_near
+    p[at] = p_near
     return p
 
 

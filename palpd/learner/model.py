@@ -85,14 +85,15 @@ class Learner(Decision):
         if not (math.isfinite(xy[0]) and math.isfinite(xy[1])):
             raise ValueError(f"a palpation at {xy_mm}: its position must be finite")  # else every later update fails
         self.probed.append(xy)
-        self._cache.clear()
         acquisition.block_near(self.blocked, self.xs, self.ys, xy, self.settings.min_spacing_mm)
         if outcome is None:
             outcome = "fit" if _usable(stiffness_n_per_mm) else "rejected"
         value = stiffness_n_per_mm if outcome == "fit" else bound_n_per_mm
         fit_before = None if self.choice is None else self.chosen_fit()  # what the newest reading may move
         count_before = None if self.choice is None else self.choice.count_of(self.choice.chosen)
-        settled_before = self.choice is not None and self._moved_within_sds(fit_before)  # (it is the fit now)
+        # (asked before the cache is cleared: the stop rule asked it of the same fits after the reading before)
+        settled_before = self.choice is not None and self._chosen_moved_within_sds()
+        self._cache.clear()
         if not self.obs.add(xy, outcome, value, sd_n_per_mm if outcome == "fit" else 0.0):
             self.coverage.probed(xy)  # no reading, but looked at
             return
@@ -244,7 +245,7 @@ class Learner(Decision):
                 continue
             fit = self.chosen_fit() if name == self.choice.chosen else self.hypotheses.laplace(name)
             if fit is not None and fit.family.k:
-                p += share * maps.inside_probability(fit, self.grid_xy)
+                p += share * maps.inside_probability(fit, self.xs, self.ys)
         self._cache["averaged p"] = p / total
         return self._cache["averaged p"]
 

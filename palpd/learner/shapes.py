@@ -90,10 +90,12 @@ def background(theta: np.ndarray, xy: np.ndarray, scale_mm: float) -> np.ndarray
     return theta[..., 0:1] + (theta[..., 1:2] * xy[:, 0] + theta[..., 2:3] * xy[:, 1]) / scale_mm
 
 
-def log_rho2(params: np.ndarray, xy: np.ndarray, ellipse: bool) -> tuple[np.ndarray, np.ndarray]:
-    """log ρ² at each point and its derivatives (n × shape params) w.r.t. [cx, cy, log R(, e1, e2)]."""
-    lr2, d = _log_rho2_all(np.asarray(params, dtype=float)[None, :], xy, ellipse)
-    return lr2[:, 0], d[:, 0, :]
+def log_rho2(params: np.ndarray, xy: np.ndarray, ellipse: bool,
+             derivatives: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """log ρ² at each point and its derivatives (n × shape params) w.r.t. [cx, cy, log R(, e1, e2)] (None when
+    not asked for: where a point lies against the lump's boundary needs none)."""
+    lr2, d = _log_rho2_all(np.asarray(params, dtype=float)[None, :], xy, ellipse, derivatives)
+    return lr2[:, 0], (None if d is None else d[:, 0, :])
 
 
 def _log_rho2_all(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, derivatives: bool = True):
@@ -123,7 +125,12 @@ def _log_rho2_all(lumps: np.ndarray, xy: np.ndarray, ellipse: bool, derivatives:
     dq_duy = 2.0 * cosh * uy - sinh_over * (-2.0 * e1 * uy + 2.0 * e2 * ux)
     dq_de1 = sinh_over * e1 * r2 - d_sinh_over * e1 * q - sinh_over * uxx
     dq_de2 = sinh_over * e2 * r2 - d_sinh_over * e2 * q - sinh_over * 2.0 * uyy
-    d = np.stack([-dq_dux / big_q, -dq_duy / big_q, np.full(r2.shape, -2.0), dq_de1 / big_q, dq_de2 / big_q], axis=2)
+    d = np.empty(r2.shape + (5,))  # filled column by column: np.stack's wrapper cost more than the arithmetic
+    d[:, :, 0] = -dq_dux / big_q
+    d[:, :, 1] = -dq_duy / big_q
+    d[:, :, 2] = -2.0
+    d[:, :, 3] = dq_de1 / big_q
+    d[:, :, 4] = dq_de2 / big_q
     return np.log(big_q) - 2.0 * lr, d
 
 
@@ -274,6 +281,12 @@ def evaluate_many(family: Family, thetas: np.ndarray, xy: np.ndarray, jacobian: 
     rows, starts = np.arange(n)[:, None], np.arange(count)[None, :]
     per_lump[starts, rows, top] = jacs[rows, starts, top]
     return f, out
+
+
+def row_variances(rows: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """rᵢᵀ Σ rᵢ for each row rᵢ: the variance of each linearised quantity (a prediction's, from the model's
+    Jacobian). Summed by einsum: numpy's sum along a short last axis cost 3-5x the product itself."""
+    return np.einsum("ij,ij->i", rows @ cov, rows)
 
 
 def heights_of(family: Family, theta: np.ndarray, xy: np.ndarray) -> np.ndarray:
