@@ -116,8 +116,11 @@ def _edge_gaps(fit, readings_xy: np.ndarray, size_mm, spacing_mm: float):
         inner = shapes.rho_at(params, -EDGE_LEVEL) - widen
         outer = shapes.rho_at(params, EDGE_LEVEL) + widen
         band = (lr2 >= 2.0 * math.log(max(inner, 1e-3))) & (lr2 <= 2.0 * math.log(outer))
-        steps = 2.0 * math.pi * np.arange(OUTSIDE_STEPS) / OUTSIDE_STEPS
-        outside = steps[np.any(np.abs(_boundary_point(params, ellipse, steps)) > half, axis=1)]
+        if np.all(np.abs(params[:2]) + shapes.axes_and_angle(params, ellipse)[0] <= half):
+            outside = np.empty(0)  # the whole boundary on the tissue (its major semi-axis all round)
+        else:
+            steps = 2.0 * math.pi * np.arange(OUTSIDE_STEPS) / OUTSIDE_STEPS
+            outside = steps[np.any(np.abs(_boundary_point(params, ellipse, steps)) > half, axis=1)]
         phases = np.sort(np.concatenate([_phase(params, readings_xy[band], ellipse), outside]))
         if phases.size == 0:
             yield 2.0 * math.pi, _boundary_point(params, ellipse, 0.0)
