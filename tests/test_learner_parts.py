@@ -675,20 +675,73 @@ def test_a_free_form_map_that_needs_more_noise_than_readings_have_is_probed_on_i
     assert 0.25 <= stiff_probability(probe) <= 0.75, probe  # before: (-30, -8), the farthest spot, at 0.21
 
 
-def test_a_chosen_free_form_map_reads_its_boundary_where_a_reading_takes_the_most_off_its_sd():
+@given(z=st.floats(0.0, 8.0), rho=st.floats(0.0, 1.0), other=st.floats(0.0, 1.0))
+@hsettings(max_examples=60, deadline=None)
+@example(z=0.0, rho=1.0, other=0.0)
+@example(z=8.0, rho=1e-12, other=1.0)
+def test_a_reading_takes_off_at_most_a_cells_misclassified_area_and_more_the_more_it_is_correlated(z, rho, other):
+    """The misclassified area a reading is expected to take off a cell in doubt (min(P, 1 − P) of its area, P =
+    Φ(z)) lies between nothing (a reading it is not correlated with) and all of it (a noise-free reading at the
+    cell itself), and grows with the correlation: at the extremes of both z and ρ too."""
+    from scipy.special import ndtr
+
+    from palpd.learner.acquisition import MIN_CORRELATION, misclassified_area_gain
+
+    var_cell, noise = 0.04, 1e-4
+    low, high = sorted((rho, other))
+
+    def gain(r: float) -> float:  # one candidate, one cell: cov for a correlation r with the reading
+        cov = np.array([[r * math.sqrt((var_cell + noise) * var_cell)]])
+        return float(misclassified_area_gain(cov, np.array([var_cell]), noise, np.array([z]), np.array([var_cell]), 4.0)[0])
+
+    whole = 4.0 * float(ndtr(-z))
+    table_error = 4.0 * 4e-4  # what is taken is read off a table (acquisition._area_taken): within 4e-4 a cell
+    assert -1e-9 <= gain(low) <= gain(high) + 1e-9 <= whole + table_error
+    if low <= MIN_CORRELATION:
+        assert gain(low) == 0.0
+    assert gain(1.0) == pytest.approx(whole, abs=table_error)
+
+
+def test_the_misclassified_area_a_reading_takes_off_is_what_the_field_would_show_after_it():
+    """Monte Carlo over the readings a Gaussian field could give at one spot: the misclassified area left over
+    three cells (one at the reading, one near, one far off) is what acquisition.misclassified_area_gain says
+    the reading takes off, to the sampling error."""
+    from scipy.special import ndtr
+
+    from palpd.learner.acquisition import misclassified_area_gain
+
+    rng = np.random.default_rng(1)
+    points = np.array([[0.0], [2.0], [9.0]])  # the reading at the first
+    cov = 0.09 * np.exp(-0.5 * (points - points.T) ** 2 / 3.0**2)
+    mean, tau, noise = np.array([0.1, -0.15, 0.05]), 0.0, 0.01
+    z = np.abs(mean - tau) / np.sqrt(np.diag(cov))
+    before = ndtr(-z).sum()
+    field = rng.multivariate_normal(mean, cov, size=200_000)
+    reading = field[:, 0] + rng.normal(0.0, math.sqrt(noise), len(field))
+    gain_k = cov[0] / (cov[0, 0] + noise)
+    after_mean = mean + (reading - mean[0])[:, None] * gain_k
+    after_sd = np.sqrt(np.diag(cov) - cov[0] ** 2 / (cov[0, 0] + noise))
+    p = ndtr((after_mean - tau) / after_sd)
+    after = np.minimum(p, 1.0 - p).sum(axis=1).mean()
+    stated = misclassified_area_gain(cov[:1], np.array([cov[0, 0]]), noise, z, np.diag(cov), 1.0)[0]
+    assert stated == pytest.approx(before - after, abs=3e-3)
+    assert stated > 0.3  # the cell read itself all but settled
+
+
+def test_a_chosen_free_form_map_reads_where_a_reading_takes_the_most_off_its_misclassified_area():
     """Twenty-six readings of the measured half-stiff map (a learner alone on the scene's field, seed 0): the
-    free-form map is chosen, its boundary known to 1.4 mm RMS, and the stop rule waits for 0.5. Each next
-    probe goes where a reading takes the most off that sd, on the boundary. Scored by the straddle (σ against
-    |μ − τ|) the next went to (-21, -6), a soft spot 25 mm from the boundary where σ was large for being far
-    from every reading: the sd stayed at 1.42 mm, and four probes took it to 0.98 mm where these take it under
-    0.85 (the scan of that map read corners this way and met the budget on every seed)."""
+    free-form map is chosen, and the stop rule's misclassified area ∫ min(P, 1 − P) dA is 357 mm², most of it
+    far from the boundary. Each next probe is the lattice cell a reading is expected to take the most off
+    (acquisition.misclassified_area_gain; the learner's own score, before the travel it adds), and six of them
+    take the area under three quarters of what it was (357 -> 252 mm²; the probes that read the boundary's
+    position before took it to 248 and left most of the doubt far from it where it was, so that the scans of
+    that map stated 3.6 mm at the budget for a true 0.38)."""
     from drivers.sim.scene import load_scene
     from drivers.sim.tissue import StiffnessField
     from palpd.config import LearnerSettings
     from palpd.learner.model import Learner
 
     scene = load_scene(Path(__file__).resolve().parent.parent / "config" / "scenes" / "half-stiff-map.toml")
-    truth = np.asarray(metrics.scene_truth(scene)[0]["boundary_mm"])
     recorded = [((-7.5, -8.0), 0.11599), ((-22.5, -24.0), 0.12014), ((7.5, -24.0), 0.27963), ((22.5, -8.0), 0.29989),
                 ((7.5, 8.0), 0.29868), ((-7.5, 24.0), 0.27041), ((-22.5, 8.0), 0.12205), ((22.5, 24.0), 0.30008),
                 ((28.0, 2.0), 0.30537), ((-9.0, -8.0), 0.12036), ((-6.0, -8.0), 0.1197), ((22.5, -24.0), 0.303),
@@ -700,16 +753,17 @@ def test_a_chosen_free_form_map_reads_its_boundary_where_a_reading_takes_the_mos
     for xy, k in recorded:
         learner.observe(xy, k, 0.001)
     assert learner.choice.chosen == "free-form" and learner.choice.weight >= 0.9
-    (lump,) = learner.lumps()
-    before = lump.boundary_sd_mm
-    assert 1.2 < before < 1.6
+    before = learner._boundary_error_parts()[0]
+    assert 300.0 < before < 400.0
     field = StiffnessField(scene)
-    for _ in range(4):
+    for _ in range(6):
+        cells, _ = learner._probe_cells
+        score = learner._free_form_area_gain(cells)
         xy = learner.next_probe(40)
-        assert np.min(np.hypot(*(truth - xy).T)) <= 3.0, xy  # on the boundary
+        best = np.flatnonzero(score > 0.0)[np.argmax(score[score > 0.0])]
+        assert score[np.flatnonzero(np.all(learner.grid_xy[cells] == xy, axis=1))[0]] >= 0.5 * score[best], xy
         learner.observe(xy, field.k_at(*xy), 0.001)
-    (lump,) = learner.lumps()
-    assert lump.boundary_sd_mm <= 0.6 * before, (before, lump.boundary_sd_mm)
+    assert learner._boundary_error_parts()[0] <= 0.75 * before
 
 
 @pytest.mark.parametrize("shape", ["half", "disc"])
