@@ -46,9 +46,9 @@ def inside_probability(fit, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
     it (as acquisition.block_near does): over a 121² grid the whole map cost ~4 ms an update, and the stop
     rule asks for it at every one."""
     family = fit.family
-    near = np.zeros((len(ys), len(xs)), dtype=bool)
     if family.k == 0:
-        return near.ravel().astype(float)
+        return np.zeros(len(ys) * len(xs))
+    near = np.zeros((len(ys), len(xs)), dtype=bool)
     ellipse = family.kind == "ellipses"
     for j in range(family.k):
         params = fit.theta[family.lump_slice(j)]
