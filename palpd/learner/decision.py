@@ -583,10 +583,14 @@ class Decision:
 
     def _candidates(self, stride_mm: float = CANDIDATE_STRIDE_MM, every: int = 1) -> np.ndarray:
         """The grid cells at least `stride_mm` apart (row-major); with `every`, every so many of them."""
-        step = max(1, int(stride_mm / (self.xs[1] - self.xs[0]))) * every
+        step = self._grid_step(stride_mm) * every
         rows = np.arange(0, len(self.ys), step)
         cols = np.arange(0, len(self.xs), step)
         return (rows[:, None] * len(self.xs) + cols[None, :]).ravel()
+
+    def _grid_step(self, stride_mm: float) -> int:
+        """Grid cells per step of a lattice at least `stride_mm` apart."""
+        return max(1, int(stride_mm / (self.xs[1] - self.xs[0])))
 
     def _noise_var(self) -> float:
         """A reading's noise variance as the scores weigh it: the readings' median one and the chosen fit's σ_w
@@ -665,9 +669,9 @@ class Decision:
     def _area_lattice(self) -> tuple[np.ndarray, float]:
         """The cells about AREA_STEP_MM apart the free-form map's misclassified area is scored on (a sub-lattice of
         the candidate cells), and each one's area."""
+        step = self._grid_step(CANDIDATE_STRIDE_MM)
+        every = max(1, self._grid_step(AREA_STEP_MM) // step)
         dx, dy = self.xs[1] - self.xs[0], self.ys[1] - self.ys[0]
-        step = max(1, int(CANDIDATE_STRIDE_MM / dx))
-        every = max(1, int(AREA_STEP_MM / (step * dx)))
         return self._candidates(every=every), float((step * every) ** 2 * dx * dy)
 
     def _readable(self, fit: Fit, xy: np.ndarray) -> np.ndarray | float:
