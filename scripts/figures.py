@@ -4,7 +4,8 @@ Each table and picture is stamped with the commit it measured (`git rev-parse`; 
 has changes outside what this writes). Writes docs/figures/*.md and *.png (the manual includes them with
 pymdownx.snippets) and copies each table into README.md between its marker comments
 `<!-- figures:NAME -->` and `<!-- /figures:NAME -->` (GitHub cannot include files). Only what runs in a few
-minutes: active scans of a few shipped scenes in simulated time, the paper scan's map, `palpd bench learner`,
+minutes: active scans of a few shipped scenes in simulated time, the paper scan's map, the real phantom's active
+scan beside a raster of the same count, `palpd bench learner`,
 and `palpd bench calibration` (about ten minutes on two cores).
 """
 from __future__ import annotations
@@ -22,6 +23,7 @@ FIGURES = ROOT / "docs" / "figures"
 WRITTEN_HERE = ("docs/figures/", "README.md")  # rewriting these does not make the measured code another one
 SCENES = ("paper", "two-lumps", "no-lump", "elongated-lump", "deep-lump", "paper-3d", "sphere-3d", "two-lumps-3d",
           "no-lump-3d")
+REAL_SCENE = "garg-phantom"  # the shipped real data: a dVRK's readings of a silicone phantom
 
 sys.path.insert(0, str(ROOT / "scripts"))
 import active_scenes  # noqa: E402  the same scans and rows as its tables
@@ -61,6 +63,29 @@ def paper_map(stamp: str) -> str:
         palpations = json.loads(report.read_text())["palpations"]
     return (f"The paper scene's active scan: {palpations} palpations (`palpd scan --scene paper --strategy active "
             f"--plot paper-map.png`, measured at commit {stamp} by `make figures`).\n")
+
+
+def real_data(stamp: str) -> str:
+    """The real dVRK phantom (garg-phantom): its active scan drawn as `palpd scan --plot` draws it, and scored beside
+    a raster of the same count (issue 48's "report what it finds against a raster of the same count")."""
+    with tempfile.TemporaryDirectory() as tmp:
+        report = Path(tmp) / "report.json"
+        subprocess.run([sys.executable, "-m", "palpd", "scan", "--scene", REAL_SCENE, "--strategy", "active",
+                        "--report", str(report), "--plot", str(FIGURES / f"{REAL_SCENE}-map.png")],
+                       check=True, capture_output=True, text=True)
+        palpations = json.loads(report.read_text())["palpations"]
+    scene = active_scenes.load_scene(active_scenes.scene_path(REAL_SCENE))
+    rows = [active_scenes.HEADER]
+    counts = {}
+    for strategy in ("active", "raster"):
+        report, m = active_scenes.scan(scene, strategy, palpations, 0)
+        counts[strategy] = report["palpations"]
+        rows.append(active_scenes.row(f"{REAL_SCENE}, {strategy}", report, m))
+    return "\n".join(rows) + (f"\n\nMeasured at commit {stamp} by `make figures`: `palpd scan --scene {REAL_SCENE} "
+                               f"--strategy active --seed 0` (default settings), then `--strategy raster "
+                               f"--max-palpations {palpations}`: the raster's square grid within the active scan's "
+                               f"count ({counts['raster']} palpations). The truth is the map's own half-height "
+                               "region; the picture is the active scan's `--plot`.\n")
 
 
 def learner_table(stamp: str) -> str:
@@ -111,8 +136,8 @@ def copy_into_readme(name: str, text: str, readme: Path = ROOT / "README.md") ->
 def main() -> int:
     FIGURES.mkdir(parents=True, exist_ok=True)
     stamp = commit_stamp()
-    figures = {"paper-map": paper_map(stamp), "scans": scans_table(stamp), "learner-bench": learner_table(stamp),
-               "calibration": calibration_table(stamp)}
+    figures = {"paper-map": paper_map(stamp), "scans": scans_table(stamp), "real-data": real_data(stamp),
+               "learner-bench": learner_table(stamp), "calibration": calibration_table(stamp)}
     for name, text in figures.items():
         (FIGURES / f"{name}.md").write_text(text)
         copy_into_readme(name, text)
