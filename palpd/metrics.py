@@ -123,7 +123,7 @@ def compare(truth: list[dict], lumps: list[dict], size_mm=None) -> dict:
     per_lump = []
     for t, true in enumerate(truth):
         if t not in match:
-            per_lump.append({"found": False})
+            per_lump.append({"found": False, "radius_mm": true["radius_mm"]})
             continue
         est = lumps[match[t]]
         centre, radius = true["center_mm"], true["radius_mm"]
@@ -149,6 +149,17 @@ def compare(truth: list[dict], lumps: list[dict], size_mm=None) -> dict:
            if any("depth_error_mm" in m for m in found) else {}),
         "per_lump": per_lump,
     }
+
+
+def wrong_beyond_claim(m: dict, unfelt_radius_mm: float | None) -> int:
+    """How many lumps a scan got wrong beyond what its verdict claims (`m`: compare's): every false lump, and
+    every true lump missed whose radius is at least the stated unfelt radius. A verdict of k lumps says "and no
+    other larger than the unfelt radius": a smaller lump in the holes between the readings is outside that claim,
+    a larger one missed is not (without a stated radius, every miss counts). The count right or wrong is
+    compare's; this says which of the wrong ones the verdict itself had not already allowed for."""
+    limit = 0.0 if unfelt_radius_mm is None else unfelt_radius_mm
+    missed = sum(1 for p in m["per_lump"] if not p["found"] and p["radius_mm"] >= limit)
+    return m["false_lumps"] + missed
 
 
 def _depth_error(true: dict, est: dict) -> dict:

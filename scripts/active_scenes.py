@@ -40,8 +40,9 @@ from palpd.tradeoff.scenes import random_scenes, soft_scenes, varied_scenes  # n
 
 HEADER = ("| scene | palpations | robot time | verdict | model (weight) | found | false | centre error | radius error "
           "| IoU | depth error |\n|---|---|---|---|---|---|---|---|---|---|---|")
-SUMMARY_HEADER = ("\n| scene | count right | palpations (median) | (most) | undetermined | worst centre error (mm) "
-                  "| worst radius error (mm) | worst IoU |\n|---|---|---|---|---|---|---|---|")
+SUMMARY_HEADER = ("\n| scene | count right | wrong beyond the verdict's claim | palpations (median) | (most) "
+                  "| undetermined | worst centre error (mm) | worst radius error (mm) | worst IoU |"
+                  "\n|---|---|---|---|---|---|---|---|---|")
 SCENES = Path(__file__).resolve().parent.parent / "config" / "scenes"
 BASE = [Settings()]  # the settings every scan starts from (--config replaces them)
 
@@ -69,14 +70,18 @@ def row(name: str, report: dict, m: dict) -> str:
 
 
 def summary(name: str, runs: list[tuple[dict, dict]]) -> str:
-    """One row over seeds: count right, palpations (median, most), worst centre and radius error, worst IoU."""
+    """One row over seeds: count right, the verdicts wrong beyond their claim (metrics.wrong_beyond_claim: a false
+    lump, or one missed at least as large as the stated unfelt radius), palpations (median, most), worst centre
+    and radius error, worst IoU."""
     right = sum(m["lumps_found"] == m["lumps_true"] and m["false_lumps"] == 0 for _, m in runs)
+    beyond = sum(r["verdict"] != "undetermined" and metrics.wrong_beyond_claim(m, (r["model"] or {}).get("unfelt_radius_mm")) > 0
+                 for r, m in runs)
     palpations = sorted(r["palpations"] for r, _ in runs)
     undetermined = sum(r["verdict"] == "undetermined" for r, _ in runs)
     def worst(key, pick=max):
         values = [m[key] for _, m in runs if m[key] is not None]
         return "–" if not values else f"{pick(values):.2f}"
-    return (f"| {name} | {right}/{len(runs)} | {palpations[len(palpations) // 2]} | {palpations[-1]} | {undetermined} | "
+    return (f"| {name} | {right}/{len(runs)} | {beyond} | {palpations[len(palpations) // 2]} | {palpations[-1]} | {undetermined} | "
             f"{worst('max_center_error_mm')} | {worst('max_radius_error_mm')} | {worst('min_iou', min)} |")
 
 

@@ -287,11 +287,16 @@ def test_a_missed_small_lump_is_scored_as_missed_not_as_the_found_one_far_off():
     truth = [{"center_mm": [-15.0, 10.0], "radius_mm": 1.5}, {"center_mm": [5.0, -3.0], "radius_mm": 6.0}]
     m = metrics.compare(truth, [disc(5.1, -3.0, 6.0)], (40.0, 40.0))
     assert m["lumps_found"] == 1 and m["lumps_missed"] == 1 and m["false_lumps"] == 0
-    assert m["per_lump"][0] == {"found": False} and m["per_lump"][1]["found"]
+    assert m["per_lump"][0] == {"found": False, "radius_mm": 1.5} and m["per_lump"][1]["found"]
     assert m["max_center_error_mm"] == pytest.approx(0.1) and m["min_iou"] > 0.95
     swapped = metrics.compare(truth, [disc(-14.0, 10.0, 1.5), disc(5.0, -2.0, 6.0), disc(20.0, 20.0, 1.0)], (40.0, 40.0))
     assert swapped["lumps_found"] == 2 and swapped["false_lumps"] == 1 and swapped["max_center_error_mm"] == pytest.approx(1.0)
     assert metrics.compare([], [disc(0.0, 0.0, 2.0)])["false_lumps"] == 1 and metrics.compare(truth, [])["lumps_missed"] == 2
+    # what the verdict had not allowed for: "no other lump larger than the unfelt radius"
+    assert metrics.wrong_beyond_claim(m, 4.0) == 0  # the 1.5 mm lump missed lay under a stated 4 mm
+    assert metrics.wrong_beyond_claim(m, 1.5) == 1 and metrics.wrong_beyond_claim(m, None) == 1
+    assert metrics.wrong_beyond_claim(swapped, 10.0) == 1  # a false lump is never within a claim
+    assert metrics.wrong_beyond_claim(metrics.compare(truth, []), 5.0) == 1  # the 6 mm lump was larger
 
 
 def test_map_truth_is_the_half_height_region_and_iou_compares_polygons(tmp_path):

@@ -169,26 +169,31 @@ def test_the_calibration_bench_scores_the_stated_error_against_the_truth_on_the_
     (row,) = json.loads(capsys.readouterr().out)["settings"]
     assert row["tolerance_mm"] == 2.0 and row["confidence"] == 0.9 and row["runs"] == 1
     assert row["count_right"] == 1.0 and row["wrong_count_verdicts"] == 0 and row["within_tolerance"] == 1.0
+    assert row["wrong_beyond_claim"] == 0
     assert 0.0 <= row["boundary_error_mm"] <= 2.0 and 0.0 < row["stated_error_mm"] <= 2.0
     with open(tmp_path / "calibration.csv", newline="") as f:
         (written,) = list(csv.DictReader(f))
     assert written["verdict"] == "lumps" and float(written["boundary_error_mm"]) == row["boundary_error_mm"]
+    assert float(written["unfelt_radius_mm"]) > 0 and written["wrong_beyond_claim"] == "0"
 
 
 def test_the_reliability_table_counts_wrong_verdicts_and_errors_within_the_tolerance():
     from palpd.commands.bench_calibration import format_table, reliability
 
-    def run(found, false, verdict, error, palpations=20, setting="tolerance_mm=0.5;confidence=0.9"):
+    def run(found, false, verdict, error, palpations=20, setting="tolerance_mm=0.5;confidence=0.9", beyond=None):
         return {"setting": setting, "lumps_found": found, "lumps_true": 1, "false_lumps": false, "verdict": verdict,
-                "boundary_error_mm": error, "expected_boundary_error_mm": 0.1, "palpations": palpations}
+                "boundary_error_mm": error, "expected_boundary_error_mm": 0.1, "palpations": palpations,
+                "wrong_beyond_claim": false + (1 - found) if beyond is None else beyond}
+    # the fourth: `none` with a lump missed under the stated unfelt radius, a wrong count within the verdict's claim
     rows = [run(1, 0, "lumps", 0.2), run(1, 1, "lumps", 0.7, 30), run(0, 0, "undetermined", 5.0, 40),
-            run(1, 0, "lumps", 0.4, 10, "tolerance_mm=2.0;confidence=0.9")]
+            run(0, 0, "none", None, 20, beyond=0), run(1, 0, "lumps", 0.4, 10, "tolerance_mm=2.0;confidence=0.9")]
     tight, loose = reliability(rows)
-    assert (tight["runs"], tight["palpations"], tight["wrong_count_verdicts"], tight["undetermined"]) == (3, 90, 1, 1)
-    assert tight["count_right"] == pytest.approx(1 / 3) and tight["within_tolerance"] == pytest.approx(1 / 3)
+    assert (tight["runs"], tight["palpations"], tight["wrong_count_verdicts"], tight["undetermined"]) == (4, 110, 2, 1)
+    assert tight["wrong_beyond_claim"] == 1  # the false lump; not the lump the `none` verdict allowed for
+    assert tight["count_right"] == pytest.approx(1 / 4) and tight["within_tolerance"] == pytest.approx(1 / 3)
     assert (tight["claimed"], tight["claimed_and_within"]) == (2, 1)  # the undetermined run claimed nothing
-    assert loose["tolerance_mm"] == 2.0 and loose["within_tolerance"] == 1.0
-    assert "| 0.5 | 0.9 | 90 |" in format_table([tight, loose], 3, 0)
+    assert loose["tolerance_mm"] == 2.0 and loose["within_tolerance"] == 1.0 and loose["wrong_beyond_claim"] == 0
+    assert "| 0.5 | 0.9 | 110 | 25 | 25% | 2 | 1 | 1 |" in format_table([tight, loose], 4, 0)
 
 
 @pytest.mark.parametrize("args, says", [(["--tolerances", "abc"], "--tolerances abc"),

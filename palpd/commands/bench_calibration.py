@@ -64,7 +64,9 @@ def run(args) -> int:
 
 def reliability(rows: list[dict]) -> list[dict]:
     """One row per setting (in the order first run): runs; palpations (sum, median); the share whose count was
-    right (every lump found, none false); verdicts that claimed a wrong count (`lumps` or `none`); undetermined;
+    right (every lump found, none false); verdicts that claimed a wrong count (`lumps` or `none`), and of those the
+    ones wrong beyond what the verdict claims (a false lump, or a lump missed at least as large as the stated
+    unfelt radius: metrics.wrong_beyond_claim); undetermined;
     of the runs with a lump to bound, the share whose true boundary error was within the tolerance asked for, and
     of those that claimed it (a verdict and a stated error within the tolerance), how many were; the median
     true and stated boundary errors."""
@@ -86,6 +88,7 @@ def reliability(rows: list[dict]) -> list[dict]:
             "palpations_median": statistics.median(r["palpations"] for r in runs),
             "count_right": sum(right) / len(runs),
             "wrong_count_verdicts": sum(not ok and r["verdict"] != "undetermined" for ok, r in zip(right, runs)),
+            "wrong_beyond_claim": sum(r["verdict"] != "undetermined" and int(r["wrong_beyond_claim"]) > 0 for r in runs),
             "undetermined": sum(r["verdict"] == "undetermined" for r in runs),
             "within_tolerance": (sum(e <= tolerance for e in errors) / len(errors)) if errors else math.nan,
             "claimed": len(claimed), "claimed_and_within": sum(r["boundary_error_mm"] <= tolerance for r in claimed),
@@ -97,12 +100,13 @@ def reliability(rows: list[dict]) -> list[dict]:
 def format_table(table: list[dict], scenes: int, failed: int) -> str:
     lines = [f"{scenes} scenes × {len(table)} settings, the active scan ({failed} runs failed)",
              "| tolerance mm | confidence | palpations (sum) | median | count right | wrong-count verdicts "
-             "| undetermined | boundary error within tolerance | of the runs that claimed it | median true error mm "
-             "| median stated error mm |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| of them beyond the claim | undetermined | boundary error within tolerance | of the runs that claimed it "
+             "| median true error mm | median stated error mm |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for s in table:
         lines.append(f"| {s['tolerance_mm']:g} | {s['confidence']:g} | {s['palpations']} | {s['palpations_median']:g} "
-                     f"| {s['count_right']:.0%} | {s['wrong_count_verdicts']} | {s['undetermined']} "
+                     f"| {s['count_right']:.0%} | {s['wrong_count_verdicts']} | {s['wrong_beyond_claim']} "
+                     f"| {s['undetermined']} "
                      f"| {_share(s['within_tolerance'])} | {s['claimed_and_within']}/{s['claimed']} "
                      f"| {_mm(s['boundary_error_mm'])} | {_mm(s['stated_error_mm'])} |")
     return "\n".join(lines)

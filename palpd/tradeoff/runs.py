@@ -7,7 +7,7 @@ from palpd.tradeoff.grid import Run
 
 COLUMNS = ["scene", "seed", "strategy", "palpation", "setting", "palpations", "robot_time_s",
            "center_error_mm", "radius_error_mm", "iou", "lumps_found", "lumps_true", "false_lumps", "verdict",
-           "boundary_error_mm", "expected_boundary_error_mm"]
+           "boundary_error_mm", "expected_boundary_error_mm", "unfelt_radius_mm", "wrong_beyond_claim"]
 
 
 def run_one(run: Run) -> dict:
@@ -27,15 +27,17 @@ def run_one(run: Run) -> dict:
 
 
 def row(run: Run, report: dict) -> dict:
-    from palpd.metrics import boundary_error_mm, region_iou
+    from palpd.metrics import boundary_error_mm, region_iou, wrong_beyond_claim
 
     m, size = report["metrics"], run.scene.tissue.size_mm
     iou = region_iou(report["truth"]["lumps"], report["lumps"], size)
     error = boundary_error_mm(report["truth"]["lumps"], report["lumps"], size)
+    unfelt = (report.get("model") or {}).get("unfelt_radius_mm")
     return {"scene": run.scene.name, "seed": run.seed, "strategy": run.entry.strategy,
             "palpation": run.entry.palpation, "setting": run.entry.label, "palpations": report["palpations"],
             "robot_time_s": report["robot_time_s"], "center_error_mm": m["max_center_error_mm"],
             "radius_error_mm": m["max_radius_error_mm"], "iou": round(iou, 4),
             "lumps_found": m["lumps_found"], "lumps_true": m["lumps_true"], "false_lumps": m["false_lumps"],
             "verdict": report["verdict"], "boundary_error_mm": None if error is None else round(error, 4),
-            "expected_boundary_error_mm": (report.get("model") or {}).get("expected_boundary_error_mm")}
+            "expected_boundary_error_mm": (report.get("model") or {}).get("expected_boundary_error_mm"),
+            "unfelt_radius_mm": unfelt, "wrong_beyond_claim": wrong_beyond_claim(m, unfelt)}
