@@ -1032,6 +1032,25 @@ def test_a_satellite_hole_is_the_widest_gap_beside_the_lumps_and_none_once_read_
     assert again is None or math.dist(again, hole) > 7.5  # ...but that hole was looked at
 
 
+def test_a_satellite_hole_beside_a_large_lump_is_one_a_lump_as_small_as_the_smallest_found_could_lie_in():
+    """Beside a 9.5 mm lump, a hole 12 mm from every probe: wider than 1.5 x the 6 mm lump found elsewhere,
+    narrower than 1.5 x its own neighbour. A lump as small as the smallest found could lie there (random-2-12: a
+    6.8 mm lump 6.9x as stiff, unread 12.4 mm from every probe beside a 9.6 mm one), so it is a hole."""
+    from palpd.learner import coverage
+
+    gx, gy = np.meshgrid(np.arange(-40.0, 41.0, 1.0), np.arange(-40.0, 41.0, 1.0))
+    large, small = (np.array([0.0, 0.0]), 9.5), (np.array([0.0, 28.0]), 6.0)
+    readings = coverage.Readings(np.column_stack([gx.ravel(), gy.ravel()]), 1.5)
+    probes = [(x, y) for x in (-20.0, 0.0, 20.0) for y in (-10.0, 0.0, 10.0, 20.0, 28.0, 36.0)] + \
+             [(-12.0, -22.0), (12.0, -22.0), (0.0, -34.0), (-30.0, -30.0), (30.0, -30.0)]
+    for xy in probes:
+        readings.add(xy)
+    hole = coverage.satellite_hole([large, small], readings, 1.5, 1.5)
+    assert hole is not None and hole[1] < -10.0  # below the large lump, where no probe is within 9 mm
+    assert 9.0 < min(math.dist(hole, p) for p in probes) < 14.25  # a hole only a lump as small as 6 mm is held to
+    assert coverage.satellite_hole([large], readings, 1.5, 1.5) is None  # alone, the large lump holds it to 14.25
+
+
 def test_a_satellite_hole_probed_without_a_reading_is_not_asked_for_again():
     """A palpation at a hole that gave no stiffness (no contact, a rejected trace) counts as looked at: the same
     spot would give none again, and asking for it again and again spent the budget there."""

@@ -158,16 +158,22 @@ def satellite_hole(discs, readings: "Readings", reach: float, spacing_mm: float)
     eight, and over a lump 7-9 mm beside two found ones on random scenes. Beside each found lump (radius R:
     cells outside every found lump within (2 + SATELLITE_GAP)·R of its centre, where the centre of a lump
     as large lies when its edge is within SATELLITE_GAP·R of this one's), no cell may be farther than
-    reach·R from every probe (never below the probe spacing). Probes, not readings: a palpation there that
-    gave no stiffness (no contact, a rejected trace) would give none again, and the hole would draw probe
-    after probe. The cell farthest from every probe is the middle of the widest such hole."""
+    reach·r from every probe (never below the probe spacing), r the smallest found lump's radius: lumps
+    found together come in the sizes found, and one as small as the smallest of them hides in a hole of its
+    own size whichever lump it lies beside. (Held to reach·R of the lump beside it, a 6.8 mm lump 6.9× as
+    stiff lay unread 12.4 mm from every probe beside a 9.6 mm lump, under the 14.3 mm that allowed, while
+    the tissue's third lump was 6.3 mm: random-2-12, `lumps` with two of its three.) Probes, not readings:
+    a palpation there that gave no stiffness (no contact, a rejected trace) would give none again, and the
+    hole would draw probe after probe. The cell farthest from every probe is the middle of the widest such
+    hole."""
     cells_xy, distance = readings.cells_xy, readings.probe_distance_mm
     inside = np.zeros(len(cells_xy), dtype=bool)
     hole = np.zeros(len(cells_xy), dtype=bool)
+    widest = max(reach * min(radius for _, radius in discs), spacing_mm)  # the hole a lump as small could lie in
     for centre, radius in discs:
         d = np.hypot(cells_xy[:, 0] - centre[0], cells_xy[:, 1] - centre[1])
         inside |= d <= radius
-        hole |= (d <= (2.0 + SATELLITE_GAP) * radius) & (distance > max(reach * radius, spacing_mm))
+        hole |= (d <= (2.0 + SATELLITE_GAP) * radius) & (distance > widest)
     hole &= ~inside
     if not hole.any():
         return None
