@@ -102,3 +102,10 @@ def test_make_figures_stamps_a_dirty_tree_uncommitted_and_rewrites_only_between_
     assert "uncommitted" not in figures.commit_stamp(tmp_path)  # the README is what it writes itself
     (tmp_path / "code.py").write_text("changed = True\n")
     assert figures.commit_stamp(tmp_path).endswith("(uncommitted changes)")
+
+
+def test_the_calibration_figure_says_the_trade_from_its_own_rows():
+    """The README's "how many fewer palpations" is the calibration table's own sums, tightest row against loosest."""
+    table = ("| tolerance mm | confidence | palpations (sum) | median |\n|---|---|---|---|\n"
+             "| 0.25 | 0.9 | 800 | 37 |\n| 0.5 | 0.9 | 700 | 30 |\n| 2 | 0.9 | 600 | 23 |")
+    assert figures_script().trade(table) == "2 mm took 25% fewer palpations than 0.25 mm"
