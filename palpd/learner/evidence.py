@@ -33,7 +33,7 @@ import numpy as np
 from palpd.learner import shapes
 from palpd.learner.shapes import BACKGROUND_PARAMS as BACKGROUND
 from palpd.learner.priors import LEVEL_SD, SLOPE_SD, Priors  # noqa: F401  (Priors: part of this API)
-from palpd.learner.likelihood import log_likelihood, noise_sd_ml, residuals
+from palpd.learner.likelihood import gaussian_log_density, log_likelihood, noise_sd_ml, residuals
 from palpd.learner.solver import levenberg_marquardt, levenberg_marquardt_many
 from palpd.learner.observations import AT_LEAST, EXACT, Observations
 
@@ -47,6 +47,7 @@ HOPELESS = 30.0  # nats: a start this far below the height a start before it rea
 GIVE_UP_AFTER = 8
 RIDGE_NATS = 0.5  # a mode this little below the chosen one is as likely as the points 1 sd from it
 CALL_OVERHEAD = 1000  # an evaluation's fixed cost, in residual entries (Python and numpy call overhead)
+MAX_LEVERAGE = 0.99  # loo_log_density: a reading's share of its own fit, at most (1: the fit passes through it)
 COST_TOLERANCE = 1e-4  # nats: a fit is done when a step gains less (evidences differ by whole nats)
 
 
@@ -316,6 +317,20 @@ def refreshed(fit: Fit, obs: Observations, priors: Priors) -> Fit:
     post = _log_posterior(family, fit.theta, obs, priors, fit.noise_sd) - 0.5 * _gaussian_prior_norm(family)
     log_det = fit.log_det + family.size * math.log(obs.n / max(fit.n, 1))
     return replace(fit, log_posterior=post, log_evidence=_log_z(family, post, log_det))
+
+
+def loo_log_density(fit: Fit, obs: Observations) -> np.ndarray:
+    """Each exact reading's log density under the fit to the others, by the linearised leave-one-out of a
+    least-squares fit: with leverage h_i = J_i Σ J_iᵀ / s_i² (Σ the fit's posterior covariance, s_i² the
+    reading's own variance and σ_w²), the reading left out is missed by e_i / (1 − h_i) at variance
+    s_i² / (1 − h_i). Comparable with the GP map's (gp.IncrementalGP.loo_log_density): both are what a
+    model foresaw of readings it had not seen, the yardstick when none of them explains the readings."""
+    exact = obs.exact
+    f, jac = shapes.evaluate(fit.family, fit.theta, obs.xy[exact])
+    var = obs.sd[exact] ** 2 + fit.noise_sd**2
+    # a reading that alone decides a parameter has leverage 1: its left-out prediction is the prior's, capped
+    leverage = np.minimum(np.einsum("ij,jk,ik->i", jac, fit.cov, jac) / var, MAX_LEVERAGE)
+    return gaussian_log_density((obs.y[exact] - f) / (1.0 - leverage), var / (1.0 - leverage))
 
 
 def _gaussian_prior_norm(family) -> float:

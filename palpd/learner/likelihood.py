@@ -61,6 +61,11 @@ def log_likelihood(r: np.ndarray, sd: np.ndarray, kind: np.ndarray, noise_sd: fl
     return float(-0.5 * np.sum(r * r) - 0.5 * np.sum(np.log(var)) - 0.5 * LOG_2PI * np.count_nonzero(exact))
 
 
+def gaussian_log_density(error: np.ndarray, var: np.ndarray) -> np.ndarray:
+    """log N(error; 0, var), elementwise: how well a predictive distribution foresaw each reading."""
+    return -0.5 * (error * error / var + np.log(var) + LOG_2PI)
+
+
 def noise_sd_ml(error: np.ndarray, sd: np.ndarray, floor: float) -> float:
     """Maximum-likelihood σ_w for exact readings with errors `error` and own sds `sd`, at least `floor`."""
     if error.size == 0:
