@@ -114,10 +114,11 @@ def draw_probes(fig, ax, probes: list[dict]) -> None:
 
 
 def draw_lumps(ax, lumps: list[dict], model: dict | None = None) -> None:
-    """The lumps of the hypothesis the evidence chose, each with its uncertainty: its boundary as reported
-    (a circle, an ellipse or a free-form contour), a band from 1 sd inside to 1 sd outside it (its radius
-    sd, the boundary scaled about the centre), and its centre with a 1-sd disc."""
-    chosen = (model or {}).get("chosen")
+    """The lumps of the hypothesis that draws them (model.drawn_by: the chosen one, unless it misses the
+    readings), each with its uncertainty: its boundary as reported (a circle, an ellipse or a free-form
+    contour), a band from 1 sd inside to 1 sd outside it (its radius sd, the boundary scaled about the
+    centre), and its centre with a 1-sd disc."""
+    chosen = (model or {}).get("drawn_by") or (model or {}).get("chosen")
     for i, lump in enumerate(lumps):
         boundary = np.asarray(lump["boundary_mm"], dtype=float)
         centre = np.asarray(lump["center_mm"], dtype=float)
@@ -163,7 +164,7 @@ def _title(report: dict) -> str:
     model = report.get("model")
     if model:
         said = f"{report['verdict']}: " if report.get("verdict") else "model "  # a live estimate has no verdict yet
-        lines.append(f"{said}{model['chosen']} (weight {model['weight']:.2f})")
+        lines.append(f"{said}{model['chosen']} (weight {model['weight']:.2f})" + _drawn_by(model))
     metrics = report.get("metrics")
     if metrics and metrics.get("max_center_error_mm") is not None:
         lines.append(f"centre error {metrics['max_center_error_mm']:.2f} mm, "
@@ -171,6 +172,12 @@ def _title(report: dict) -> str:
     if report.get("verdict") == "undetermined" and model and model.get("undecided"):
         lines.append(textwrap.fill(f"why: {model['undecided']}", TITLE_WIDTH))  # why, where one looks
     return "\n".join(lines)
+
+
+def _drawn_by(model: dict) -> str:
+    """When the lumps are not the chosen hypothesis's (decision.drawn_by): whose they are."""
+    drawn = model.get("drawn_by")
+    return f", drawn by {drawn}" if drawn and drawn != model["chosen"] else ""
 
 
 def posterior_of(planner, report: dict, settings, size_mm) -> dict | None:

@@ -167,6 +167,9 @@ class ModelChoice(BaseModel):
     """Its posterior weight among the hypotheses compared."""
     runner_up: Optional[str] = None
     """The next most likely hypothesis (null when there was no other)."""
+    drawn_by: Optional[str] = None
+    """The hypothesis whose lumps `lumps` holds: `chosen`, or `free-form` when the chosen one misses the
+    readings (`undecided` says so) and the free-form map foresees them better (leave-one-out)."""
     count_weight: Optional[float] = None
     """The posterior mass of the chosen hypothesis's lump count: every hypothesis that claims as many lumps
     (the verdict stands on it, whichever outline those hypotheses draw)."""

@@ -138,8 +138,11 @@ def _summary(report: dict) -> str:
 
 def _verdict_line(report: dict) -> str:
     model = report.get("model")
+    drawn = (model or {}).get("drawn_by")
     chosen = "" if not model else (f" (model {model['chosen']}, weight {model['weight']:.3f}"
-                                   + (f", runner-up {model['runner_up']})" if model["runner_up"] else ")"))
+                                   + (f", runner-up {model['runner_up']}" if model["runner_up"] else "")
+                                   + (f"; lumps drawn by {drawn}, which foresees the readings better"
+                                      if drawn and drawn != model["chosen"] else "") + ")")
     text = {"none": "no lump", "lumps": f"{len(report['lumps'])} lump(s)",
             "undetermined": "undetermined"}[report["verdict"]]
     for soft in (model or {}).get("soft_regions") or []:  # no lump, but the map the user will look at has it
