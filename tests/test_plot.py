@@ -26,6 +26,20 @@ def test_an_undetermined_scan_s_picture_says_why():
     assert "why" not in decided
 
 
+def test_lumps_drawn_by_another_model_than_the_chosen_one_say_so_in_the_picture_and_the_verdict_line():
+    """Once the chosen fit misses its readings, the free-form map may draw the lumps (decision.drawn_by)."""
+    from palpd.commands.scan import _verdict_line
+
+    drawn = {**MODEL, "runner_up": "circles:1", "drawn_by": "free-form", "undecided": "ellipse:1 misses"}
+    title = _title({"scene": "r", "strategy": "active", "palpations": 40, "verdict": "undetermined", "model": drawn})
+    assert title.split("\n")[1] == "undetermined: ellipse:1 (weight 0.99), drawn by free-form"
+    line = _verdict_line({"verdict": "undetermined", "lumps": [], "model": drawn})
+    assert "model ellipse:1, weight 0.994, runner-up circles:1; lumps drawn by free-form" in line, line
+    same = {**drawn, "drawn_by": "ellipse:1"}
+    assert "drawn" not in _title({"scene": "r", "palpations": 9, "verdict": "lumps", "model": same})
+    assert "drawn" not in _verdict_line({"verdict": "lumps", "lumps": [], "model": same})
+
+
 def test_the_picture_s_title_stays_over_the_map_and_its_probe_numbers_above_the_lumps_at_8_pt(tmp_path, monkeypatch):
     """`palpctl plot`'s title ran into the colour bar; probe numbers were 5.5 pt, under the lump outlines."""
     import matplotlib.pyplot as plt
