@@ -801,6 +801,32 @@ def test_a_free_form_regions_sds_are_its_boundarys_carried_to_its_centroid_and_a
     assert "boundary_sd_mm" in lump.as_dict()
 
 
+@hsettings(max_examples=40, deadline=None)
+@given(width=st.floats(20.0, 100.0), height=st.floats(20.0, 100.0), radius=st.floats(3.0, 9.0),
+       where=st.tuples(st.floats(-1.0, 1.0), st.floats(-1.0, 1.0)), reading=st.tuples(st.floats(-0.7, 0.7),
+                                                                                       st.floats(-0.7, 0.7)))
+def test_a_free_form_region_on_a_tissue_of_any_aspect_is_backed_by_its_reading_and_measured_in_mm(
+        width, height, radius, where, reading):
+    """The learner's grid has as many cells along y as along x, so on a tissue that is not square its cells
+    are not square either. Each axis in its own step: a stiff reading inside the region backs it wherever it
+    lies, and the region's area is in mm² (garg-phantom, 58 x 20 mm, was reported 10.5 mm too wide in
+    radius, its cells counted as 0.97 mm squares, and a reading off the region's middle row looked up in
+    another row)."""
+    from palpd.learner.lumps import Map, find_lumps
+
+    xs, ys = np.linspace(-width / 2, width / 2, 61), np.linspace(-height / 2, height / 2, 61)
+    radius = min(radius, 0.3 * min(width, height))
+    centre = np.array([where[0] * (width / 2 - radius - 1.0), where[1] * (height / 2 - radius - 1.0)])
+    gx, gy = np.meshgrid(xs, ys)
+    mean = np.where(np.hypot(gx - centre[0], gy - centre[1]) <= radius, 0.6, 0.12)
+    m = Map(xs, ys, mean, np.full_like(mean, 0.01), np.full_like(mean, 0.36), 4.0, 0.36)
+    stiff = centre + radius * np.array(reading)  # anywhere within 0.7 of the radius along each axis
+    (lump,) = find_lumps(m, stiff[None, :])
+    cell = max(xs[1] - xs[0], ys[1] - ys[0])
+    assert lump.radius_mm == pytest.approx(radius, abs=cell), (lump.radius_mm, radius, cell)
+    assert math.dist(lump.center_mm, centre) <= cell
+
+
 def test_the_count_says_how_large_a_lump_could_lie_unfelt_between_the_readings():
     """A lump whose disc holds no reading is felt by none: the report's model gives the largest such radius, the
     farthest spot's distance from every reading, and it shrinks where the next reading goes."""

@@ -34,14 +34,29 @@ class Map:
     length_mm: float    # kernel length scale: how far one probe informs
     tissue_tau: float   # the global τ (min_contrast above the tissue level), where no region's own holds
 
+    # The grid has as many cells along y as along x, so on a tissue that is not square its cells are not
+    # either: every distance and area on it takes both steps (a 58 x 20 mm map's cells are 0.97 x 0.33 mm).
+    @property
+    def dx_mm(self) -> float:
+        return float(self.xs[1] - self.xs[0]) if len(self.xs) > 1 else 1.0
+
+    @property
+    def dy_mm(self) -> float:
+        return float(self.ys[1] - self.ys[0]) if len(self.ys) > 1 else 1.0
+
     @property
     def cell_mm(self) -> float:
-        return float(self.xs[1] - self.xs[0]) if len(self.xs) > 1 else 1.0
+        """The coarser of the two steps: what the grid can resolve at best."""
+        return max(self.dx_mm, self.dy_mm)
+
+    @property
+    def cell_area_mm2(self) -> float:
+        return self.dx_mm * self.dy_mm
 
     def at(self, field: np.ndarray, xy: np.ndarray) -> np.ndarray:
         """A (ny, nx) field's values at the cells nearest the points (n, 2)."""
-        cols = np.clip(np.rint((xy[:, 0] - self.xs[0]) / self.cell_mm).astype(int), 0, len(self.xs) - 1)
-        rows = np.clip(np.rint((xy[:, 1] - self.ys[0]) / self.cell_mm).astype(int), 0, len(self.ys) - 1)
+        cols = np.clip(np.rint((xy[:, 0] - self.xs[0]) / self.dx_mm).astype(int), 0, len(self.xs) - 1)
+        rows = np.clip(np.rint((xy[:, 1] - self.ys[0]) / self.dy_mm).astype(int), 0, len(self.ys) - 1)
         return field[rows, cols]
 
 
@@ -65,7 +80,7 @@ def regions_of(m: Map, stiff_xy: np.ndarray, stiff_k: np.ndarray, tissue_n_per_m
         x, y = gx[region], gy[region]
         inside = _inside(m, region, stiff_xy)
         peak = float(stiff_k[inside].max()) if inside.any() else float(m.mean[region].max())
-        out.append(Region((float(x.mean()), float(y.mean())), math.sqrt(x.size / math.pi) * m.cell_mm,
+        out.append(Region((float(x.mean()), float(y.mean())), math.sqrt(x.size * m.cell_area_mm2 / math.pi),
                           _stretch(np.cov(np.vstack([x, y])) if x.size > 2 else np.eye(2)),
                           peak / tissue_n_per_mm - 1.0))
     return out
@@ -114,7 +129,7 @@ def _one_lump(m: Map, region: np.ndarray, others: np.ndarray) -> LumpEstimate | 
     # A free-form region has no circle to report: its centroid and equal-area radius (within the area).
     gx, gy = np.meshgrid(m.xs, m.ys)
     centre = np.array([gx[region].mean(), gy[region].mean()])
-    area = np.count_nonzero(region) * m.cell_mm**2
+    area = np.count_nonzero(region) * m.cell_area_mm2
     centre_sd, radius_sd, boundary_sd = _region_uncertainty(m, polygon, centre, area)
     return LumpEstimate((float(centre[0]), float(centre[1])), math.sqrt(area / math.pi), centre_sd, radius_sd,
                         polygon.tolist(), boundary_sd_mm=boundary_sd)
@@ -122,8 +137,9 @@ def _one_lump(m: Map, region: np.ndarray, others: np.ndarray) -> LumpEstimate | 
 
 def _boundary(m: Map, region: np.ndarray, others: np.ndarray) -> np.ndarray | None:
     """The region's μ = τ contour, closed along the area's edge by a soft frame around the grid."""
-    grow = int(math.ceil(2.0 * m.length_mm / m.cell_mm)) + 1
-    own = ndimage.binary_dilation(region, EIGHT_CONNECTED, iterations=grow) & ~others
+    # 2ℓ and a cell around the region, along each axis in its own step
+    grow = [int(math.ceil(2.0 * m.length_mm / step)) + 1 for step in (m.dy_mm, m.dx_mm)]
+    own = ndimage.maximum_filter(region, size=(2 * grow[0] + 1, 2 * grow[1] + 1)) & ~others
     z = np.where(own, m.mean - m.tau, -1.0)
     z = np.pad(z, 1, constant_values=-1.0)
     eps = 1e-6 * m.cell_mm  # the frame sits just outside the area, so the polygon follows its edge
@@ -151,7 +167,7 @@ def boundary_stretches(m: Map, polygon: np.ndarray) -> tuple[np.ndarray, np.ndar
     if not moving.any():
         return None
     mid, ds = mid[moving], ds[moving]
-    gy, gx = np.gradient(m.mean - m.tau, m.cell_mm)
+    gy, gx = np.gradient(m.mean - m.tau, m.dy_mm, m.dx_mm)
     slope = np.maximum(np.hypot(m.at(gx, mid), m.at(gy, mid)), 1e-12)
     span = max(m.xs[-1] - m.xs[0], m.ys[-1] - m.ys[0])
     return mid, ds, np.minimum(m.at(m.std, mid) / slope, span)

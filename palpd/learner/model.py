@@ -186,9 +186,10 @@ class Learner(Decision):
         lv = lv or self._levels()
         shape = (len(self.ys), len(self.xs))
         mean = np.exp(self.gp.mean).reshape(shape)
-        reach_cells = 2.0 * self.gp.hyper.length_mm / (self.xs[1] - self.xs[0])
         exact = self.obs.exact
-        tau = tau_field(mean, lv, reach_cells, self._cells_of(self.obs.xy[exact]), np.exp(self.obs.y[exact]))
+        steps = (self.ys[1] - self.ys[0], self.xs[1] - self.xs[0])
+        tau = tau_field(mean, lv, 2.0 * self.gp.hyper.length_mm, steps, self._cells_of(self.obs.xy[exact]),
+                        np.exp(self.obs.y[exact]))
         self._cache["map"] = free_form.Map(self.xs, self.ys, mean, mean * self.gp.std().reshape(shape), tau,
                                            self.gp.hyper.length_mm, lv.tau_n_per_mm)
         return self._cache["map"]

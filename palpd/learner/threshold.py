@@ -80,8 +80,10 @@ def _two_groups(sorted_k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return sorted_k[:split], sorted_k[split:]
 
 
-def tau_field(mean: np.ndarray, lv: Levels, reach_cells: float, obs_cells: np.ndarray, obs_k: np.ndarray) -> np.ndarray:
-    """τ on the grid: each region's half-height within `reach_cells` of it, the global τ elsewhere.
+def tau_field(mean: np.ndarray, lv: Levels, reach_mm: float, steps_mm: tuple[float, float], obs_cells: np.ndarray,
+              obs_k: np.ndarray) -> np.ndarray:
+    """τ on the grid (its cells `steps_mm` = (dy, dx) apart): each region's half-height within `reach_mm` of it,
+    the global τ elsewhere.
 
     A region's peak is its stiffest reading (obs_cells are (row, col) grid indices), not the
     map's maximum: a GP overshoots a flat top with a sharp edge.
@@ -97,6 +99,6 @@ def tau_field(mean: np.ndarray, lv: Levels, reach_cells: float, obs_cells: np.nd
     np.maximum.at(observed, labels[obs_cells[:, 0], obs_cells[:, 1]], obs_k)
     peaks = np.where(np.isfinite(observed[1:]), observed[1:], peaks)
     half_heights = np.concatenate([[lv.tau_n_per_mm], 0.5 * (lv.tissue_n_per_mm + np.asarray(peaks))])
-    distance, (iy, ix) = ndimage.distance_transform_edt(labels == 0, return_indices=True)
+    distance, (iy, ix) = ndimage.distance_transform_edt(labels == 0, sampling=steps_mm, return_indices=True)
     nearest = labels[iy, ix]
-    return np.where(distance <= reach_cells, half_heights[nearest], tau)
+    return np.where(distance <= reach_mm, half_heights[nearest], tau)
