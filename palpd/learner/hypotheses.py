@@ -418,7 +418,8 @@ class Hypotheses:
         return starts
 
     # -- the choice -------------------------------------------------------------------------------
-    def choice(self, free_form_log_evidence: float | None, obs: Observations, free_form_regions: int = 0) -> Choice:
+    def choice(self, free_form_log_evidence: float | None, obs: Observations, free_form_regions: int = 0,
+               free_form_counts: dict[int, float] | None = None) -> Choice:
         """Posterior weights of the supported hypotheses (and the free-form map's, when it has a region: it
         claims as many lumps as it has `free_form_regions`), each parametric one's evidence checked against its
         posterior (posterior.py) from the most likely down, until the rest could not weigh anything whatever
@@ -462,9 +463,12 @@ class Hypotheses:
         for m in separate:
             # each hypothesis's count over its parameters' posterior: lumps whose boundaries nearly meet may be
             # one region or two (evidence.region_counts); one too unlikely to move the count, at its mode
-            fit = self.fits.get(m)  # None for the free-form map, whose regions are its own
-            spread = evidence.region_counts(fit.family, fit.theta, fit.cov) \
-                if fit is not None and m in regions and shares[m] >= COUNT_SHARE else {choice.count_of(m): 1.0}
+            fit = self.fits.get(m)  # None for the free-form map, whose regions are its own (`free_form_counts`)
+            if fit is None:
+                spread = free_form_counts if free_form_counts and shares[m] >= COUNT_SHARE else {choice.count_of(m): 1.0}
+            else:
+                spread = evidence.region_counts(fit.family, fit.theta, fit.cov) \
+                    if m in regions and shares[m] >= COUNT_SHARE else {choice.count_of(m): 1.0}
             for count, p in spread.items():
                 choice.counts[count] = choice.counts.get(count, 0.0) + shares[m] * p
         return choice

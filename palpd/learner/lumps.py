@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import contourpy
 import numpy as np
 from scipy import ndimage
+from scipy.sparse import coo_matrix, csgraph
 
 from palpd.estimate import LumpEstimate
 from palpd.learner.hypotheses import Region
@@ -84,6 +85,76 @@ def regions_of(m: Map, stiff_xy: np.ndarray, stiff_k: np.ndarray, tissue_n_per_m
                           _stretch(np.cov(np.vstack([x, y])) if x.size > 2 else np.eye(2)),
                           peak / tissue_n_per_mm - 1.0))
     return out
+
+
+def count_spread(m: Map, stiff_xy: np.ndarray, p_lump: np.ndarray) -> dict[int, float]:
+    """The map's count of backed regions over its posterior, {count: probability}: regions drawn apart at
+    P(lump) = ½ may be one where the cells between them are in doubt. Two regions are one if some path
+    between them runs through lump all the way; along a path, cells a kernel length ℓ apart are taken as
+    independent and those closer as one, so a path's chance is the product of P over it, each cell's
+    P raised to its step over ℓ, and the join's chance is its likeliest path's (a shortest path in
+    −log P, `_join_chances`). Joins along the strongest tree of them are taken as independent. So a count
+    drawn across an unread gap is not a count decided (a stiff strip along a real phantom's edge was drawn
+    as two regions at its ends, `lumps` at weight 1.000, one of them false), while a long way round through
+    plain tissue in doubt joins nothing."""
+    labels, regions = _backed_regions(m, stiff_xy)
+    count = len(regions)
+    if count < 2:
+        return {count: 1.0}
+    chances = _join_chances(m, regions, p_lump)
+    spread = np.zeros(count + 1)  # by the number of joins
+    spread[0] = 1.0
+    for chance in _strongest_tree(chances):
+        spread[1:] = spread[1:] * (1.0 - chance) + spread[:-1] * chance
+        spread[0] *= 1.0 - chance
+    return {count - j: float(p) for j, p in enumerate(spread) if p > 0.0}
+
+
+def _join_chances(m: Map, regions: list[np.ndarray], p_lump: np.ndarray) -> np.ndarray:
+    """chance[i, j]: the likeliest path's chance that regions i and j are one (count_spread)."""
+    ny, nx = p_lump.shape
+    inside = np.zeros(p_lump.shape, dtype=bool)
+    for region in regions:
+        inside |= region
+    cost = np.where(inside, 0.0, -np.log(np.clip(p_lump, 1e-12, 1.0)))  # per ℓ of path
+    index = np.arange(ny * nx).reshape(ny, nx)
+    rows, cols, weights = [], [], []
+    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):  # each neighbour pair once, the graph undirected
+        a = index[:ny - dy, max(0, -dx):nx - max(0, dx)].ravel()
+        b = index[dy:, max(0, dx):nx - max(0, -dx)].ravel()
+        step = math.hypot(dx * m.dx_mm, dy * m.dy_mm) / m.length_mm
+        rows.append(a)
+        cols.append(b)
+        weights.append(0.5 * (cost.ravel()[a] + cost.ravel()[b]) * step + 1e-12)  # > 0: csgraph drops zeros
+    graph = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))),
+                       shape=(ny * nx, ny * nx)).tocsr()
+    count = len(regions)
+    chances = np.zeros((count, count))
+    for i, region in enumerate(regions[:-1]):
+        distance = csgraph.dijkstra(graph, directed=False, indices=np.flatnonzero(region.ravel()), min_only=True)
+        for j in range(i + 1, count):
+            chances[i, j] = chances[j, i] = math.exp(-float(distance[regions[j].ravel()].min()))
+    return chances
+
+
+def _strongest_tree(chances: np.ndarray) -> list[float]:
+    """The join chances along the maximum spanning tree of the regions (Kruskal): each region joined to the
+    others by its likeliest joins, count − 1 of them."""
+    count = len(chances)
+    parent = list(range(count))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    pairs = sorted(((chances[i, j], i, j) for i in range(count) for j in range(i + 1, count)), reverse=True)
+    tree = []
+    for chance, i, j in pairs:
+        if root(i) != root(j):
+            parent[root(i)] = root(j)
+            tree.append(float(chance))
+    return tree
 
 
 def _inside(m: Map, region: np.ndarray, xy: np.ndarray) -> np.ndarray:

@@ -160,7 +160,18 @@ class Learner(Decision):
                 next(self._pass)
         # (the free-form map's regions as last found: every update while readings are few, then at each pass)
         self.choice = self.hypotheses.choice(self._free_form_evidence() if self._regions else None, self.obs,
-                                             len(self._regions))
+                                             len(self._regions), self._free_form_counts())
+
+    def _free_form_counts(self) -> dict[int, float] | None:
+        """The free-form map's count of regions over its posterior (lumps.count_spread), None without two."""
+        if len(self._regions) < 2:
+            return None
+        exact = self.obs.exact
+        lv = self._levels()
+        k = np.exp(self.obs.y[exact])
+        stiff = lump_points(k, k * self.obs.sd[exact], lv)
+        p = self._free_form_grid().p_lump.reshape(len(self.ys), len(self.xs))
+        return free_form.count_spread(self.free_form_map(lv), self.obs.xy[exact][stiff], p)
 
     def _tissue_log(self) -> float:
         return math.log(self._levels().tissue_n_per_mm)
