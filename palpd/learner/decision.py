@@ -21,7 +21,7 @@ from palpd.learner.likelihood import texture_sd
 from palpd.learner.lumps import find_lumps
 from palpd.learner.observations import AT_LEAST
 from palpd.learner.priors import MAX_RADIUS_FRACTION, MIN_RADIUS_MM
-from palpd.learner.threshold import lump_points, surely_above
+from palpd.learner.threshold import surely_above
 
 MIN_READINGS = shapes.Family("circles", 1, 1.0).size  # the simplest lump model's parameter count
 MIN_WEIGHT = 0.01  # hypotheses below this weight are left out of the disagreement
@@ -183,11 +183,7 @@ class Decision:
     def _map_lumps(self) -> list[LumpEstimate]:
         """The free-form map's regions backed by a surely stiff reading (lumps.find_lumps), once an update."""
         if "map lumps" not in self._cache:
-            exact = self.obs.exact
-            k = np.exp(self.obs.y[exact])
-            lv = self._levels()
-            stiff = lump_points(k, k * self.obs.sd[exact], lv)
-            self._cache["map lumps"] = find_lumps(self.free_form_map(lv), self.obs.xy[exact][stiff])
+            self._cache["map lumps"] = find_lumps(self.free_form_map(), self._stiff_readings()[0])
         return self._cache["map lumps"]
 
     def _parts(self) -> list[tuple[int, LumpEstimate]]:

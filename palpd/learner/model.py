@@ -166,12 +166,8 @@ class Learner(Decision):
         """The free-form map's count of regions over its posterior (lumps.count_spread), None without two."""
         if len(self._regions) < 2:
             return None
-        exact = self.obs.exact
-        lv = self._levels()
-        k = np.exp(self.obs.y[exact])
-        stiff = lump_points(k, k * self.obs.sd[exact], lv)
         p = self._free_form_grid().p_lump.reshape(len(self.ys), len(self.xs))
-        return free_form.count_spread(self.free_form_map(lv), self.obs.xy[exact][stiff], p)
+        return free_form.count_spread(self.free_form_map(), self._stiff_readings()[0], p)
 
     def _tissue_log(self) -> float:
         return math.log(self._levels().tissue_n_per_mm)
@@ -179,12 +175,19 @@ class Learner(Decision):
     def _find_regions(self) -> list:
         """The free-form map's regions backed by a stiff reading: starts for the parametric fits."""
         lv = self._levels()
-        exact = self.obs.exact
-        k = np.exp(self.obs.y[exact])
-        stiff = lump_points(k, k * self.obs.sd[exact], lv)
-        self._regions = free_form.regions_of(self.free_form_map(lv), self.obs.xy[exact][stiff], k[stiff],
-                                             lv.tissue_n_per_mm)
+        xy, k = self._stiff_readings()
+        self._regions = free_form.regions_of(self.free_form_map(lv), xy, k, lv.tissue_n_per_mm)
         return self._regions
+
+    def _stiff_readings(self) -> tuple[np.ndarray, np.ndarray]:
+        """Where the readings surely above τ lie and their stiffness (threshold.lump_points), once an update:
+        what backs a region of the free-form map (its starts, its count, its lumps)."""
+        if "stiff" not in self._cache:
+            exact = self.obs.exact
+            k = np.exp(self.obs.y[exact])
+            stiff = lump_points(k, k * self.obs.sd[exact], self._levels())
+            self._cache["stiff"] = self.obs.xy[exact][stiff], k[stiff]
+        return self._cache["stiff"]
 
     def _free_form_evidence(self) -> float:
         """log evidence of the free-form map: its marginal likelihood, less BIC's price of its two kernel parameters."""
