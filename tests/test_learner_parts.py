@@ -67,6 +67,23 @@ def test_the_posterior_covariance_between_cells_is_what_a_reading_at_one_takes_o
         assert gp.var == pytest.approx(predicted, abs=1e-5 * hyper.signal_var), n
 
 
+def test_the_lattice_covariance_is_the_covariance_of_its_cells_under_whatever_kernel_the_map_has_now():
+    """The free-form map's probe score asks the covariance of a fixed lattice's cells at every update, its
+    prior kernel kept while the kernel holds: the same as asking for those cells afresh, before and after
+    readings and a new kernel (a kept kernel that outlived a relearn would score the probes by the old one)."""
+    rng = np.random.default_rng(2)
+    cells = grid()
+    lattice = np.arange(0, len(cells), 7)
+    a, b = np.sort(rng.choice(len(lattice), 20, replace=False)), np.sort(rng.choice(len(lattice), 30, replace=False))
+    gp = IncrementalGP(cells, Hyper(np.log(0.12), 0.5, 6.0, 1e-4))
+    for step in range(3):
+        assert gp.lattice_covariance(lattice, a, b) == pytest.approx(gp.covariance(lattice[a], lattice[b]), abs=1e-9)
+        for p in rng.uniform(-30, 30, (4, 2)):
+            gp.add(p, np.log(0.12) + rng.normal(0.0, 0.3), 1e-4)
+        assert gp.lattice_covariance(lattice, a, b) == pytest.approx(gp.covariance(lattice[a], lattice[b]), abs=1e-9)
+        gp.refit(Hyper(np.log(0.12), 0.5 + step, 3.0 + 2.0 * step, 1e-4))
+
+
 def readings(k_at, points):
     obs = Observations()
     for p in points:
@@ -705,6 +722,32 @@ def test_a_reading_takes_off_at_most_a_cells_misclassified_area_and_more_the_mor
     if low <= MIN_CORRELATION:
         assert gain(low) == 0.0
     assert gain(1.0) == pytest.approx(whole, abs=table_error)
+
+
+@given(seed=st.integers(0, 2**32 - 1), candidates=st.integers(1, 6), cells=st.integers(1, 9),
+       spread=st.sampled_from([0.1, 1.0, 10.0]), strength=st.sampled_from([1.0, 0.05]))
+@hsettings(max_examples=40, deadline=None)
+def test_each_candidates_area_is_the_sum_over_its_own_pairs_whatever_the_cells(seed, candidates, cells, spread,
+                                                                              strength):
+    """The score of every candidate against every cell at once (each cell's z read once, each pair's ρ) is,
+    candidate by candidate, the sum of Φ(−z) − 2·T(z, √(1 − ρ²)/ρ) over the cells it is correlated with by
+    more than MIN_CORRELATION, to the table's error: z of any sign and size, ρ from 0 to 1, most pairs
+    correlated (summed in place) or few (a list of pairs)."""
+    from scipy.special import ndtr, owens_t
+
+    from palpd.learner.acquisition import MIN_CORRELATION, misclassified_area_gain
+
+    rng = np.random.default_rng(seed)
+    var_candidates, var_cells, noise = rng.uniform(0.01, 0.1, candidates), rng.uniform(0.01, 0.1, cells), 1e-3
+    bound = np.sqrt((var_candidates[:, None] + noise) * var_cells[None, :])
+    cov = rng.uniform(-1.0, 1.0, (candidates, cells)) * bound * strength  # |ρ| ≤ 1
+    z = rng.normal(0.0, spread, cells)
+    got = misclassified_area_gain(cov, var_candidates, noise, z, var_cells, 2.0)
+    rho = np.abs(cov) / bound
+    safe = np.clip(rho, 1e-12, 1.0)
+    exact = np.where(rho > MIN_CORRELATION,
+                     ndtr(-np.abs(z))[None, :] - 2.0 * owens_t(np.abs(z)[None, :], np.sqrt(1.0 - safe**2) / safe), 0.0)
+    assert got == pytest.approx(2.0 * exact.sum(axis=1), abs=2.0 * 4e-4 * cells)
 
 
 def test_the_misclassified_area_a_reading_takes_off_is_what_the_field_would_show_after_it():

@@ -688,10 +688,11 @@ class Decision:
         doubt = ndtr(-z) > DOUBT
         if not doubt.any():
             return None
-        candidates = lattice[~self.blocked[lattice]]
+        open_ = np.flatnonzero(~self.blocked[lattice])
+        candidates = lattice[open_]
         noise = float(np.median(self.obs.sd**2)) + self.gp.hyper.white_var
-        gain = acquisition.misclassified_area_gain(self.gp.covariance(candidates, lattice[doubt]), self.gp.var[candidates],
-                                                   noise, z[doubt], var[doubt], area)
+        cov = self.gp.lattice_covariance(lattice, open_, np.flatnonzero(doubt))
+        gain = acquisition.misclassified_area_gain(cov, self.gp.var[candidates], noise, z[doubt], var[doubt], area)
         score = np.zeros(len(cells))
         score[np.searchsorted(cells, candidates)] = gain  # the lattice is one of the candidate cells' (both row-major)
         return score

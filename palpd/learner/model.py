@@ -41,6 +41,7 @@ class Learner(Decision):
         # ~0.1-0.5 s of CPU, paid here, as the learner is built, rather than inside that reading's update
         import scipy.optimize  # noqa: F401
 
+        acquisition.area_taken_table()  # the same for the table the free-form map's probe is scored with (~20 ms)
         self.settings = settings
         self.size_mm = (float(size_mm[0]), float(size_mm[1]))
         self.supervised_tau_n_per_mm = supervised_tau_n_per_mm  # None: τ from the data (unsupervised)
