@@ -171,6 +171,8 @@ def _title(report: dict) -> str:
                      f"radius error {metrics['max_radius_error_mm']:.2f} mm")
     if report.get("verdict") == "undetermined" and model and model.get("undecided"):
         lines.append(textwrap.fill(f"why: {model['undecided']}", TITLE_WIDTH))  # why, where one looks
+    elif report.get("verdict") == "lumps" and model and model.get("boundary_doubt"):  # the count, not the boundary
+        lines.append(textwrap.fill(f"boundary not known to the tolerance: {model['boundary_doubt']}", TITLE_WIDTH))
     return "\n".join(lines)
 
 

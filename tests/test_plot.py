@@ -23,7 +23,17 @@ def test_an_undetermined_scan_s_picture_says_why():
     assert (first, second) == ("blotches — active, 40 palpations", "undetermined: ellipse:1 (weight 0.99)")
     assert " ".join(why_lines) == f"why: {why}" and all(len(line) <= 60 for line in why_lines)
     decided = _title({"scene": "p", "palpations": 9, "verdict": "lumps", "model": {**MODEL, "undecided": None}})
-    assert "why" not in decided
+    assert "why" not in decided and "boundary" not in decided
+
+
+def test_a_count_decided_at_the_budget_says_in_its_picture_that_the_boundary_is_not_known_to_the_tolerance():
+    doubt = "the boundary's expected error is 0.82 mm, over the 0.25 mm asked"
+    title = _title({"scene": "garg", "strategy": "active", "palpations": 40, "verdict": "lumps",
+                    "model": {**MODEL, "undecided": None, "boundary_doubt": doubt}})
+    assert " ".join(title.split("\n")[2:]) == f"boundary not known to the tolerance: {doubt}"
+    undetermined = _title({"scene": "g", "palpations": 40, "verdict": "undetermined",
+                           "model": {**MODEL, "undecided": "ellipse:1 misses", "boundary_doubt": doubt}})
+    assert "boundary" not in undetermined  # the count's doubt comes first: that is what undetermined is about
 
 
 def test_lumps_drawn_by_another_model_than_the_chosen_one_say_so_in_the_picture_and_the_verdict_line():

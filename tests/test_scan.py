@@ -160,6 +160,24 @@ def test_cli_active_scan_with_defaults_pins_the_paper_lump_and_says_which_model(
     assert 0 < lump["center_sd_mm"] <= 0.5 and 0 < lump["radius_sd_mm"] <= 0.5
     assert lump["boundary_mm"][0] == lump["boundary_mm"][-1]
     assert (tmp_path / "r.png").read_bytes().startswith(b"\x89PNG")
+    # stopped by the rule: the boundary is known to the tolerance, and nothing says otherwise
+    assert report["model"]["boundary_doubt"] is None and "boundary: not known" not in result.stdout
+
+
+def test_cli_a_count_decided_at_the_budget_says_the_boundary_is_not_known_to_the_tolerance_asked(tmp_path, run_cli):
+    """--tolerance-mm 0.05 on the paper scene: the count is decided by the 16th palpation, the boundary to
+    0.05 mm is not, and the budget ends the scan there. The verdict is the count's (`lumps`, exit 0); the user
+    who asked for 0.05 mm is told it was not reached, by how much, and what would reach it (before, only the
+    report's expected_boundary_error_mm said so)."""
+    result = run_cli("scan", "--scene", SCENES / "paper.toml", "--strategy", "active", "--tolerance-mm", "0.05",
+                     "--max-palpations", "16", "--quiet", "--report", tmp_path / "r.json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads((tmp_path / "r.json").read_text())
+    error = report["model"]["expected_boundary_error_mm"]
+    assert report["verdict"] == "lumps" and error > 0.05
+    assert report["model"]["boundary_doubt"] == f"the boundary's expected error is {error:.2f} mm, over the 0.05 mm asked"
+    assert (f"boundary: not known to the tolerance: {report['model']['boundary_doubt']} (the budget was spent first: "
+            "raise --max-palpations, or loosen --tolerance-mm)") in result.stdout
 
 
 def test_cli_a_budget_spent_before_the_evidence_decides_is_undetermined_and_fails(tmp_path, run_cli):

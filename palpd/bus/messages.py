@@ -187,6 +187,10 @@ class ModelChoice(BaseModel):
     """Why the choice does not stand yet (null once it does): too few readings, a weight under the confidence
     asked for, no hypothesis that explains the readings to their precision, or a choice one reading old. A scan
     that ends with it set is `undetermined`."""
+    boundary_doubt: Optional[str] = None
+    """Why the boundary is not known to the tolerance asked (null once it is, or with no lump): its expected
+    error over `tolerance_mm`, or a lump whose centre, edge or top no reading has read. A scan whose count is
+    decided ends `lumps` with it set when the budget runs out first."""
     soft_regions: Optional[list[SoftRegionMsg]] = None
     """Only when the chosen model has one (`none+soft:1`): the soft region it draws."""
 

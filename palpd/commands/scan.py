@@ -67,6 +67,11 @@ def run(args) -> int:
     printer = _progress_printer(args, settings.palpation.mode == "sliding")
     report, planner = run_simulated_scan(settings, scene, printer, args.realtime, args.max_palpations, started)
     _say(args, _summary(report), always=True)
+    doubt = (report.get("model") or {}).get("boundary_doubt")
+    if report["verdict"] == "lumps" and doubt and report.get("strategy") == "active":
+        # the count is decided, the boundary not to what was asked: only the budget ends an active scan so
+        _say(args, f"boundary: not known to the tolerance: {doubt} (the budget was spent first: raise "
+                   f"--max-palpations, or loosen --tolerance-mm)", always=True)
     if args.report:
         write_json(args.report, report)
         _say(args, f"report written to {args.report}")

@@ -44,8 +44,8 @@ class Decision:
         return None if self.choice is None else self.hypotheses.checked(self.choice.chosen, self.obs)
 
     def model(self) -> dict | None:
-        """{chosen, weight, runner_up, drawn_by, unfelt_radius_mm, undecided} of the scan report and the estimate
-        event, and soft_regions when the chosen model has one."""
+        """{chosen, weight, runner_up, drawn_by, unfelt_radius_mm, undecided, boundary_doubt} of the scan report
+        and the estimate event, and soft_regions when the chosen model has one."""
         if self.choice is None:
             return None
         soft = describe.soft_regions_of(self.chosen_fit())
@@ -55,7 +55,20 @@ class Decision:
                                         "expected_boundary_error_mm": None if error is None else round(error, 3),
                                         "unfelt_area_mm2": round(self.unfelt_area_mm2(), 1),
                                         "unfelt_radius_mm": round(self.unfelt_radius_mm(), 1),
-                                        "undecided": self.undecided()} | ({"soft_regions": soft} if soft else {})
+                                        "undecided": self.undecided(),
+                                        "boundary_doubt": self.boundary_doubt()} | ({"soft_regions": soft} if soft else {})
+
+    def boundary_doubt(self) -> str | None:
+        """Why (b) of the stop rule does not hold, the boundary not known to the user's tolerance (None once it
+        is, or with no boundary): what a verdict reached at the budget leaves open of what was asked, which the
+        count's verdict alone does not say."""
+        if self.choice is None or self._boundary_known():
+            return None
+        error = self.expected_boundary_error_mm()
+        tolerance = self.settings.tolerance_mm
+        if error is not None and error > tolerance:
+            return f"the boundary's expected error is {error:.2f} mm, over the {tolerance:g} mm asked"
+        return "a lump's centre, edge or top holds no reading yet: its boundary is not pinned down"
 
     def expected_boundary_error_mm(self) -> float | None:
         """The reported boundary's expected error in mm: the posterior expected misclassified area over the

@@ -212,7 +212,8 @@ function panel() {
   text("ambiguous", e && e.ambiguous_area_mm2 != null ? `${e.ambiguous_area_mm2.toFixed(0)} mm²` : "—");
   const m = e && e.model;  // the hypothesis the evidence chose, and why it does not stand yet
   text("model", m ? `${m.chosen} (weight ${m.weight.toFixed(2)}${m.runner_up ? `, runner-up ${m.runner_up}` : ""})` : "—");
-  text("undecided", m && m.undecided ? `not yet: ${m.undecided}` : "");
+  const notYet = m && (m.undecided || m.boundary_doubt);  // the count first, then the boundary's tolerance
+  text("undecided", notYet ? `not yet: ${notYet}` : "");
   list("lumps", ((e && e.lumps) || []).map((l, i) =>
     `lump ${i + 1}: centre (${l.center_mm[0].toFixed(1)}, ${l.center_mm[1].toFixed(1)}) ± ${l.center_sd_mm.toFixed(2)} mm, ` +
     `radius ${l.radius_mm.toFixed(1)} ± ${l.radius_sd_mm.toFixed(2)} mm` +
