@@ -236,6 +236,20 @@ def test_beside_two_lumps_found_a_third_nearly_touching_them_is_looked_for():
     assert m["max_center_error_mm"] <= 0.5 and m["max_radius_error_mm"] <= 0.5 and m["min_iou"] >= 0.9, m
 
 
+def test_what_is_read_beside_lumps_found_together_follows_the_confidence_asked():
+    """Beside lumps found together the count stands once its mass, times the chance that no lump as small lies
+    unfelt in the holes beside them, reaches `confidence` (decision._satellites_in_doubt): a stricter confidence
+    reads more of those holes, a looser one fewer, the count right either way. (Before, any hole there kept the
+    scan reading whatever was asked: two-lumps read on from its 26th palpation to its 35th.)"""
+    truth = [((-12.0, 10.0), 8.0, 2.0, 0.7), ((14.0, -13.0), 6.0, 4.0, 0.5)]
+    runs = {c: learn(field(truth), confidence=c) for c in (0.9, 0.99)}
+    for confidence, learner in runs.items():
+        m = metrics.compare([{"center_mm": c, "radius_mm": r} for c, r, *_ in truth], [l.as_dict() for l in learner.lumps()])
+        assert learner.verdict() == "lumps" and m["lumps_found"] == 2 and m["false_lumps"] == 0, (confidence, m)
+        assert not learner._satellites_in_doubt()  # it stopped: the rule holds
+    assert runs[0.99].points > runs[0.9].points
+
+
 def test_a_palpation_at_no_finite_position_is_refused_and_the_learner_goes_on():
     """A NaN position had been taken, and every later update failed (the grid index of NaN)."""
     learner = Learner((60.0, 60.0), LearnerSettings(grid_points=41), 0.3, 0)

@@ -1125,6 +1125,35 @@ def test_a_satellite_hole_is_the_widest_gap_beside_the_lumps_and_none_once_read_
     assert again is None or math.dist(again, hole) > 7.5  # ...but that hole was looked at
 
 
+@given(points=st.lists(st.tuples(st.floats(-30.0, 30.0), st.floats(-30.0, 30.0)), min_size=1, max_size=30),
+       more=st.lists(st.tuples(st.floats(-30.0, 30.0), st.floats(-30.0, 30.0)), min_size=1, max_size=10),
+       reach=st.sampled_from([1.0, 1.5, 3.0]))
+@hsettings(max_examples=40, deadline=None)
+def test_the_share_of_the_cells_beside_the_lumps_in_a_hole_is_what_a_count_of_them_says_and_readings_only_shrink_it(
+        points, more, reach):
+    """coverage.satellite_hole_share, which the stop rule turns into the chance that no lump as small as the
+    smallest found lies unfelt beside them (decision._satellites_in_doubt): the share of the cells outside
+    the lumps within 3 radii of one that lie farther than reach x the smallest radius from every probe, counted
+    cell by cell; 0 exactly when there is no satellite hole; never larger after more palpations."""
+    from palpd.learner import coverage
+
+    gx, gy = np.meshgrid(np.arange(-30.0, 31.0, 2.0), np.arange(-30.0, 31.0, 2.0))
+    cells = np.column_stack([gx.ravel(), gy.ravel()])
+    discs = [(np.array([-8.0, 0.0]), 5.0), (np.array([6.0, 3.0]), 7.0)]
+    readings = coverage.Readings(cells, 1.5)
+    for xy in points:
+        readings.add(xy)
+    share = coverage.satellite_hole_share(discs, readings, reach, 1.5)
+    d = [np.hypot(*(cells - c).T) for c, _ in discs]
+    beside = np.any([di <= 3.0 * r for di, (_, r) in zip(d, discs)], axis=0) & np.all([di > r for di, (_, r) in zip(d, discs)], axis=0)
+    nearest = np.min([np.hypot(*(cells - np.asarray(xy)).T) for xy in points], axis=0)
+    assert share == pytest.approx(np.count_nonzero(beside & (nearest > reach * 5.0)) / np.count_nonzero(beside))
+    assert (share == 0.0) == (coverage.satellite_hole(discs, readings, reach, 1.5) is None)
+    for xy in more:
+        readings.add(xy)
+    assert coverage.satellite_hole_share(discs, readings, reach, 1.5) <= share
+
+
 def test_a_satellite_hole_beside_a_large_lump_is_one_a_lump_as_small_as_the_smallest_found_could_lie_in():
     """Beside a 9.5 mm lump, a hole 12 mm from every probe: wider than 1.5 x the 6 mm lump found elsewhere,
     narrower than 1.5 x its own neighbour. A lump as small as the smallest found could lie there (random-2-12: a

@@ -224,7 +224,8 @@ class Decision:
             over the lumps the hypotheses draw, so it speaks for the count only where a lump would have
             been felt: no lump could hide where nothing was read, no reading hints at a lump no hypothesis
             has, no rival's lump holds no reading, and no one reading could overturn the count
-            (`_count_doubt`, stopping).
+            (`_count_doubt`, stopping); beside lumps found together, where lumps come together, the mass is
+            taken times the chance that no lump as small lies unfelt there (`_satellites_in_doubt`).
         (b) The boundary is known to the tolerance: the expected boundary error, the posterior expected
             misclassified area ∫ min(P, 1 − P) dA with P(lump) averaged over the hypotheses by their
             weight, plus the expected area of lumps no reading has felt (their prior: `expected_lumps`,
@@ -345,6 +346,22 @@ class Decision:
             self._cache["satellite"] = None if fit is None or fit.family.k < coverage.CLUSTER_LUMPS or reach <= 0 \
                 else coverage.satellite_hole(_discs(fit), self.coverage, reach, self.settings.min_spacing_mm)
         return self._cache["satellite"]
+
+    def _satellites_in_doubt(self) -> bool:
+        """(a) of the stop rule beside lumps found together: the count's posterior mass, times the chance that no
+        lump as small as the smallest found lies unfelt beside them, is under `confidence`. Lumps found together
+        come together, so the unfelt lumps' prior (`expected_lumps`) is placed beside each of the k found ones
+        rather than anywhere on the tissue: the expected number unfelt is λ = k · expected_lumps · the share of
+        the cells beside them in a hole (coverage.satellite_hole_share), none of them with probability e^(−λ).
+        Before, any such hole kept the scan reading: two-lumps read on from its 26th palpation to its 35th,
+        across most of the tissue, at any tolerance or confidence."""
+        if self._satellite_hole() is None:
+            return False
+        fit = self.chosen_fit()
+        share = coverage.satellite_hole_share(_discs(fit), self.coverage, self.settings.satellite_reach,
+                                              self.settings.min_spacing_mm)
+        unfelt = fit.family.k * self.settings.expected_lumps * share
+        return self.choice.count_weight * math.exp(-unfelt) < self.settings.confidence
 
     def _covering_spot(self, unexplored: tuple[float, float]) -> tuple[float, float]:
         """The covering lattice's point nearest an unexplored spot (its own cell's: within the `none` reach of
@@ -510,7 +527,7 @@ class Decision:
             return "a lump that a rival hypothesis draws holds no reading yet"
         if stopping and self._unexplored() is not None:
             return "a spot of the tissue is farther from every reading than a lump's felt footprint"
-        if stopping and self._satellite_hole() is not None:
+        if stopping and self._satellites_in_doubt():
             return "a hole beside the lumps found together could hide another"
         if stopping and self._decisive_spot() is not None:
             return "one reading could make a rival count the likelier"
@@ -604,7 +621,8 @@ class Decision:
         # lumps found together and a hole beside them a lump could hide in: asked once all else holds, or once the
         # chosen fit misses its readings (an unmodelled lump beside them is the likeliest cause: touching-lumps'
         # third lump, whose tail the two found misfit, was never read while the probes circled the two)
-        satellite = self._satellite_hole() if stands or (chosen and not self._adequate()) else None
+        satellite = self._satellite_hole() if (stands and self._satellites_in_doubt()) or (chosen and not self._adequate()) \
+            else None
         if satellite is not None:
             return float(satellite[0]), float(satellite[1])
         decisive = self._decisive_spot() if stands else None
