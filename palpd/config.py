@@ -192,8 +192,9 @@ class LearnerSettings(_Section):
     # square the reach widens, up to coverage_mm, until the covering takes no more points than there (16): `none`
     # in ~18 palpations on any tissue, ruling out a little less (80 x 80 mm: 14.25 mm); the verdict says how much
     none_coverage_mm: Positive = 11.0
-    # ...and, beside two or more lumps found, no spot within three radii of one farther than this many of its
-    # radii from a palpation (a lump nearly touching them, felt by no reading); 0: off
+    # ...and, beside two or more lumps found, a spot within three radii of one farther than this many of the
+    # smallest one's radii from a palpation is a hole a lump nearly touching them could lie in unfelt; the count
+    # stands once its mass times the chance that none does (expected_lumps beside each found one) is `confidence`; 0: off
     satellite_reach: NonNegative = 1.5
     length_scale_mm: tuple[Positive, Positive] = (1.5, 8.0)  # bounds of the free-form map's kernel length scale
     refit_growth: Annotated[float, Field(gt=1.0)] = 1.3  # relearn that kernel when the data grew this much
