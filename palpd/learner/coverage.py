@@ -166,24 +166,19 @@ def satellite_hole(discs, readings: "Readings", reach: float, spacing_mm: float)
     a palpation there that gave no stiffness (no contact, a rejected trace) would give none again, and the
     hole would draw probe after probe. The cell farthest from every probe is the middle of the widest such
     hole."""
-    beside, hole = _beside_and_holes(discs, readings, reach, spacing_mm)
-    if not hole.any():
-        return None
-    distance = readings.probe_distance_mm
-    return readings.cells_xy[np.flatnonzero(hole)[int(np.argmax(distance[hole]))]]
+    return satellite_holes(discs, readings, reach, spacing_mm)[0]
 
 
 def satellite_hole_share(discs, readings: "Readings", reach: float, spacing_mm: float) -> float:
     """The share of the cells beside the found lumps (satellite_hole's) that lie in such a hole: where a lump as
     small as the smallest found could lie unfelt."""
-    beside, hole = _beside_and_holes(discs, readings, reach, spacing_mm)
-    return np.count_nonzero(hole) / max(np.count_nonzero(beside), 1)
+    return satellite_holes(discs, readings, reach, spacing_mm)[1]
 
 
-def _beside_and_holes(discs, readings: "Readings", reach: float, spacing_mm: float) -> tuple[np.ndarray, np.ndarray]:
-    """The cells beside the found lumps (outside each, within (2 + SATELLITE_GAP) of its radii of its centre),
-    and those of them farther than reach·r from every probe (r the smallest found radius; never below the
-    probe spacing)."""
+def satellite_holes(discs, readings: "Readings", reach: float, spacing_mm: float) -> tuple[np.ndarray | None, float]:
+    """(satellite_hole, satellite_hole_share) at once: the cells beside the found lumps (outside each, within
+    (2 + SATELLITE_GAP) of its radii of its centre), those of them farther than reach·r from every probe (r the
+    smallest found radius; never below the probe spacing), the middle of the widest and their share."""
     cells_xy, distance = readings.cells_xy, readings.probe_distance_mm
     inside = np.zeros(len(cells_xy), dtype=bool)
     beside = np.zeros(len(cells_xy), dtype=bool)
@@ -193,7 +188,10 @@ def _beside_and_holes(discs, readings: "Readings", reach: float, spacing_mm: flo
         inside |= d <= radius
         beside |= d <= (2.0 + SATELLITE_GAP) * radius
     beside &= ~inside
-    return beside, beside & (distance > widest)
+    hole = beside & (distance > widest)
+    if not hole.any():
+        return None, 0.0
+    return cells_xy[np.flatnonzero(hole)[int(np.argmax(distance[hole]))]], np.count_nonzero(hole) / np.count_nonzero(beside)
 
 
 @functools.lru_cache(maxsize=8)

@@ -341,10 +341,14 @@ class Decision:
         beside them wider than `satellite_reach` of a lump's radius (coverage.satellite_hole), or None. A
         single lump is left to `coverage_mm`: a closer look around every lump would cost most scans 5-10
         palpations (the median is a single-lump scan)."""
+        return self._satellite_holes()[0]
+
+    def _satellite_holes(self) -> tuple[np.ndarray | None, float]:
+        """(the satellite hole or None, the share of the cells beside the lumps in a hole), once an update."""
         if "satellite" not in self._cache:
             fit, reach = self.chosen_fit(), self.settings.satellite_reach
-            self._cache["satellite"] = None if fit is None or fit.family.k < coverage.CLUSTER_LUMPS or reach <= 0 \
-                else coverage.satellite_hole(_discs(fit), self.coverage, reach, self.settings.min_spacing_mm)
+            self._cache["satellite"] = (None, 0.0) if fit is None or fit.family.k < coverage.CLUSTER_LUMPS or reach <= 0 \
+                else coverage.satellite_holes(_discs(fit), self.coverage, reach, self.settings.min_spacing_mm)
         return self._cache["satellite"]
 
     def _satellites_in_doubt(self) -> bool:
@@ -352,15 +356,13 @@ class Decision:
         lump as small as the smallest found lies unfelt beside them, is under `confidence`. Lumps found together
         come together, so the unfelt lumps' prior (`expected_lumps`) is placed beside each of the k found ones
         rather than anywhere on the tissue: the expected number unfelt is λ = k · expected_lumps · the share of
-        the cells beside them in a hole (coverage.satellite_hole_share), none of them with probability e^(−λ).
+        the cells beside them in a hole (coverage.satellite_holes), none of them with probability e^(−λ).
         Before, any such hole kept the scan reading: two-lumps read on from its 26th palpation to its 35th,
         across most of the tissue, at any tolerance or confidence."""
-        if self._satellite_hole() is None:
+        hole, share = self._satellite_holes()
+        if hole is None:
             return False
-        fit = self.chosen_fit()
-        share = coverage.satellite_hole_share(_discs(fit), self.coverage, self.settings.satellite_reach,
-                                              self.settings.min_spacing_mm)
-        unfelt = fit.family.k * self.settings.expected_lumps * share
+        unfelt = self.chosen_fit().family.k * self.settings.expected_lumps * share
         return self.choice.count_weight * math.exp(-unfelt) < self.settings.confidence
 
     def _covering_spot(self, unexplored: tuple[float, float]) -> tuple[float, float]:
