@@ -18,9 +18,21 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "config" / "scenes"
 
 
-# Above Linux's ephemeral range (32768-60999): a port released here is not taken by some process's
-# outgoing connection before the daemon binds it.
-PORT_RANGE = (61000, 65535)
+
+def _worker_port_range(low: int = 61000, high: int = 65535) -> tuple[int, int]:
+    """Above Linux's ephemeral range (32768-60999), so that a port released here is not taken by some process's
+    outgoing connection before the daemon binds it; and a share of it to each pytest-xdist worker, so that two
+    workers never pick the same port in the moment between probing it and a daemon binding it (it happened:
+    "cannot bind: Address already in use" from a daemon on a port another worker had just probed)."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
+    count = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    index = int(worker.removeprefix("gw")) if worker.removeprefix("gw").isdigit() else 0
+    share = (high - low + 1) // max(count, 1)
+    return low + index * share, low + (index + 1) * share - 1
+
+
+PORT_RANGE = _worker_port_range()
+_pick = random.SystemRandom()  # never a seeded global state (hypothesis seeds `random` inside its examples)
 WAKE_MS = 100  # wait_for asks for the status at least this often
 
 
@@ -34,7 +46,7 @@ def free_loopback_ports(count: int) -> list[int]:
             probe = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
             probes.append(probe)
             try:
-                probe.bind(("127.0.0.1", random.randint(*PORT_RANGE)))
+                probe.bind(("127.0.0.1", _pick.randint(*PORT_RANGE)))
             except OSError:  # taken: try another
                 probes.pop().close()
         return [probe.getsockname()[1] for probe in probes]

@@ -10,7 +10,7 @@ import pytest
 import zmq
 
 from conftest import assert_one_line_error
-from daemon_client import Daemon, receive
+from daemon_client import PORT_RANGE, Daemon, receive
 from mcap_official import read_closed, read_streaming
 from palpd.bus.messages import EVENT_MODELS
 from palpd.daemon.mcap import read_messages
@@ -173,7 +173,7 @@ def test_non_loopback_bind_without_keys_is_refused(tmp_path, run_cli):
 def test_a_taken_port_ends_the_daemon_with_one_line_instead_of_a_hang(tmp_path, run_cli, taken):
     daemon = Daemon(tmp_path)
     squatter = daemon.socket(zmq.PUB)
-    endpoint = f"tcp://127.0.0.1:{squatter.bind_to_random_port('tcp://127.0.0.1')}"
+    endpoint = f"tcp://127.0.0.1:{squatter.bind_to_random_port('tcp://127.0.0.1', *PORT_RANGE)}"
     try:
         result = run_cli("serve", env=daemon.env | {f"PALPD_BUS__{taken.upper()}": endpoint})
     finally:

@@ -8,6 +8,7 @@ import psutil
 import pytest
 
 from conftest import SCENES
+from daemon_client import PORT_RANGE
 from palpd import palpctl
 from palpd.bus.messages import ScanStartArgs
 from palpd.bus.replies import ScanStartReply
@@ -121,10 +122,10 @@ def test_watch_with_no_events_on_its_endpoint_says_so_in_one_line_within_its_tim
     context = zmq.Context()
     router = context.socket(zmq.ROUTER)
     router.setsockopt(zmq.LINGER, 0)
-    commands = f"tcp://127.0.0.1:{router.bind_to_random_port('tcp://127.0.0.1')}"
+    commands = f"tcp://127.0.0.1:{router.bind_to_random_port('tcp://127.0.0.1', *PORT_RANGE)}"
     silent = context.socket(zmq.PUB)  # bound, so the SUB connects, and never publishes
     silent.setsockopt(zmq.LINGER, 0)
-    events = f"tcp://127.0.0.1:{silent.bind_to_random_port('tcp://127.0.0.1')}"
+    events = f"tcp://127.0.0.1:{silent.bind_to_random_port('tcp://127.0.0.1', *PORT_RANGE)}"
 
     done = threading.Event()
 

@@ -8,7 +8,7 @@ import sys
 import pytest
 import zmq
 
-from daemon_client import free_loopback_ports
+from daemon_client import PORT_RANGE, free_loopback_ports
 
 from conftest import ROOT
 from palpd.bus.messages import Estimate, Palpation, Stiffness
@@ -55,7 +55,7 @@ def palpate(bus, i, xy):
 def test_learner_process_turns_palpations_into_estimates_with_next_probe(ctx, tmp_path):
     bus = ctx.socket(zmq.XPUB)
     bus.setsockopt(zmq.LINGER, 0)
-    events_port = bus.bind_to_random_port("tcp://127.0.0.1")
+    events_port = bus.bind_to_random_port("tcp://127.0.0.1", *PORT_RANGE)
     (learner_port,) = free_loopback_ports(1)
     cfg = tmp_path / "palpd.toml"
     cfg.write_text(f'[bus]\nevents = "tcp://127.0.0.1:{events_port}"\n'

@@ -14,6 +14,7 @@ import time
 import zmq
 
 from palpd.bus.messages import FaultMsg, Status
+from daemon_client import PORT_RANGE
 from palpd.bus.replies import StatusReply
 
 
@@ -23,8 +24,8 @@ def test_watch_keeps_one_subscription_and_prints_a_fault_published_after_a_quiet
     xpub.setsockopt(zmq.XPUB_VERBOSE, 1)  # every subscribe reaches us, not only the first of a topic
     for socket in (router, xpub):
         socket.setsockopt(zmq.LINGER, 0)
-    commands = f"tcp://127.0.0.1:{router.bind_to_random_port('tcp://127.0.0.1')}"
-    events = f"tcp://127.0.0.1:{xpub.bind_to_random_port('tcp://127.0.0.1')}"
+    commands = f"tcp://127.0.0.1:{router.bind_to_random_port('tcp://127.0.0.1', *PORT_RANGE)}"
+    events = f"tcp://127.0.0.1:{xpub.bind_to_random_port('tcp://127.0.0.1', *PORT_RANGE)}"
     watch = subprocess.Popen([sys.executable, "-m", "palpd.palpctl", "--endpoint", commands, "--events", events,
                               "watch"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     state, subscribes, status_seq, faulted = "ready", 0, 0, False
