@@ -12,7 +12,7 @@ from hypothesis import example, given, settings as hsettings, strategies as st
 
 from palpd import metrics
 from palpd.learner import shapes
-from palpd.learner.gp import JITTER, PENDING_ROWS, Hyper, IncrementalGP, fit_hyper
+from palpd.learner.gp import JITTER, PENDING_ROWS, Hyper, IncrementalGP, fit_hyper, lattice_steps
 from palpd.learner.hypotheses import Hypotheses
 from palpd.learner.observations import Observations
 
@@ -70,18 +70,20 @@ def test_the_posterior_covariance_between_cells_is_what_a_reading_at_one_takes_o
 def test_the_lattice_covariance_is_the_covariance_of_its_cells_under_whatever_kernel_the_map_has_now():
     """The free-form map's probe score asks the covariance of a fixed lattice's cells at every update, its
     prior kernel kept while the kernel holds: the same as asking for those cells afresh, before and after
-    readings and a new kernel (a kept kernel that outlived a relearn would score the probes by the old one)."""
+    readings and a new kernel (a kept kernel that outlived a relearn would score the probes by the old one). On
+    a grid's cells the kernel is read off a table of their offsets (gp.lattice_kernel); off a grid, pair by pair."""
     rng = np.random.default_rng(2)
-    cells = grid()
-    lattice = np.arange(0, len(cells), 7)
-    a, b = np.sort(rng.choice(len(lattice), 20, replace=False)), np.sort(rng.choice(len(lattice), 30, replace=False))
-    gp = IncrementalGP(cells, Hyper(np.log(0.12), 0.5, 6.0, 1e-4))
-    for step in range(3):
-        assert gp.lattice_covariance(lattice, a, b) == pytest.approx(gp.covariance(lattice[a], lattice[b]), abs=1e-9)
-        for p in rng.uniform(-30, 30, (4, 2)):
-            gp.add(p, np.log(0.12) + rng.normal(0.0, 0.3), 1e-4)
-        assert gp.lattice_covariance(lattice, a, b) == pytest.approx(gp.covariance(lattice[a], lattice[b]), abs=1e-9)
-        gp.refit(Hyper(np.log(0.12), 0.5 + step, 3.0 + 2.0 * step, 1e-4))
+    for on_grid, cells in ((True, grid()), (False, rng.uniform(-30.0, 30.0, (441, 2)))):
+        lattice = np.arange(0, len(cells), 7)  # scattered over the grid's rows and columns
+        assert (lattice_steps(cells[lattice]) is not None) == on_grid
+        a, b = np.sort(rng.choice(len(lattice), 20, replace=False)), np.sort(rng.choice(len(lattice), 30, replace=False))
+        gp = IncrementalGP(cells, Hyper(np.log(0.12), 0.5, 6.0, 1e-4))
+        for step in range(3):
+            assert gp.lattice_covariance(lattice, a, b) == pytest.approx(gp.covariance(lattice[a], lattice[b]), abs=1e-9)
+            for p in rng.uniform(-30, 30, (4, 2)):
+                gp.add(p, np.log(0.12) + rng.normal(0.0, 0.3), 1e-4)
+            assert gp.lattice_covariance(lattice, a, b) == pytest.approx(gp.covariance(lattice[a], lattice[b]), abs=1e-9)
+            gp.refit(Hyper(np.log(0.12), 0.5 + step, 3.0 + 2.0 * step, 1e-4))
 
 
 def readings(k_at, points):
@@ -410,6 +412,33 @@ def test_the_covering_lattice_leaves_no_spot_beyond_its_reach(width_mm, height_m
     assert len(lattice) <= 2.0 * width_mm * height_mm / (2.598 * reach_mm**2) + 2.0 * (width_mm + height_mm) / reach_mm + 1
     order = np.array(lattice_order(lattice, seed))
     assert len(order) == len(lattice) and len(np.unique(np.round(np.abs(order), 6), axis=0)) == len(np.unique(np.round(np.abs(lattice), 6), axis=0))
+
+
+@hsettings(max_examples=12, deadline=None)
+@given(width_mm=st.floats(5.0, 758.0), height_mm=st.floats(5.0, 758.0), grid_points=st.sampled_from([11, 121, 401]))
+@example(width_mm=200.0, height_mm=200.0, grid_points=121)  # 14 641 cells at 2 mm: one probe score 42 s and 12 GB
+def test_the_free_form_probe_score_weighs_a_bounded_lattice_on_any_tissue(width_mm, height_mm, grid_points):
+    """The free-form map's probe score weighs every candidate against every cell in doubt, so its cost goes as
+    the lattice's cells squared: on any tissue the arm reaches (up to 758 mm) and any grid, at most AREA_CELLS
+    cells, none closer than AREA_STEP_MM where the grid allows, and a score for every candidate."""
+    from palpd.config import LearnerSettings
+    from palpd.learner import Learner
+    from palpd.learner.decision import AREA_CELLS, AREA_STEP_MM
+
+    learner = Learner((width_mm, height_mm), LearnerSettings(grid_points=grid_points), 0.3)
+    lattice, cell_area = learner._area_lattice
+    assert len(lattice) <= AREA_CELLS
+    xs, ys = np.unique(learner.grid_xy[lattice, 0]), np.unique(learner.grid_xy[lattice, 1])
+    if len(xs) > 1 and len(ys) > 1:
+        assert cell_area == pytest.approx((xs[1] - xs[0]) * (ys[1] - ys[0]))
+        fine = min(width_mm, height_mm) / (grid_points - 1)  # the grid's own step, when coarser than AREA_STEP_MM
+        assert min(xs[1] - xs[0], ys[1] - ys[0]) >= min(AREA_STEP_MM, fine) - 1e-9
+    rng = np.random.default_rng(0)
+    for xy in rng.uniform(-0.5, 0.5, (6, 2)) * (width_mm, height_mm):  # a stiff half: the free-form map in doubt
+        learner.observe(xy, 0.36 if xy[0] > 0 else 0.12, 0.001)
+    cells, _ = learner._probe_cells
+    gain = learner._free_form_area_gain(cells)
+    assert gain is None or (gain.shape == (len(cells),) and np.all(np.isfinite(gain)) and gain.min() >= -1e-9)
 
 
 def test_the_covering_lattice_of_a_60_mm_square_at_11_mm_is_16_points_its_first_half_spread():

@@ -32,6 +32,7 @@ NEGLIGIBLE_NATS = 1e-3  # a reading the rivals disagree about by less than this 
 DECISIVE_WEIGHT = 1e-6  # a rival this far below the choice (14 nats) is left to the evidence alone (_decisive_spot)
 PREDICTED_SIGMA = 3.0  # never stop right after a reading the chosen fit did not predict within this many sd
 AREA_STEP_MM = 2.0  # the free-form map's next probe: its misclassified area scored on a lattice this fine...
+AREA_CELLS = 1024  # ...or coarser, to at most this many cells (a 60 mm tissue's is 31 × 31; pairs go as its square)
 DOUBT = 1e-3  # ...over the cells whose min(P, 1 − P) is above this
 
 
@@ -733,9 +734,13 @@ class Decision:
     @functools.cached_property
     def _area_lattice(self) -> tuple[np.ndarray, float]:
         """The cells about AREA_STEP_MM apart the free-form map's misclassified area is scored on (a sub-lattice of
-        the candidate cells), and each one's area."""
+        the candidate cells), and each one's area; coarser on a tissue where that would be more than AREA_CELLS
+        cells: the score weighs every candidate against every cell in doubt, so its time and memory go as the
+        cells' square (a 200 mm tissue at 2 mm: 14 641 cells, one score 42 s and 12 GB)."""
         step = self._grid_step(CANDIDATE_STRIDE_MM)
         every = max(1, self._grid_step(AREA_STEP_MM) // step)
+        while math.ceil(len(self.xs) / (step * every)) * math.ceil(len(self.ys) / (step * every)) > AREA_CELLS:
+            every += 1
         dx, dy = self.xs[1] - self.xs[0], self.ys[1] - self.ys[0]
         return self._candidates(every=every), float((step * every) ** 2 * dx * dy)
 

@@ -46,6 +46,38 @@ def kernel(a: np.ndarray, b: np.ndarray, hyper: Hyper) -> np.ndarray:
     return hyper.signal_var * (1.0 + r + r * r / 3.0) * np.exp(-r) + plane
 
 
+def lattice_steps(cells: np.ndarray) -> tuple[np.ndarray, int, float, float] | None:
+    """For cells on a regular lattice: (each pair's offset in steps as one index, |i_a − i_b|·rows + |j_a − j_b|;
+    rows; the step along x; along y), or None if they are not on one. Made once a lattice: the Matérn part of
+    the kernel depends on the offset alone, so a new kernel is read off a table of the offsets (`lattice_kernel`)
+    rather than computed pair by pair (~900 × 900 pairs on a 60 mm tissue: 15 ms → 5)."""
+    steps = []
+    for axis in (0, 1):
+        values = np.unique(cells[:, axis])
+        step = float(np.min(np.diff(values))) if len(values) > 1 else 1.0
+        index = np.rint((cells[:, axis] - values[0]) / step).astype(np.int32)
+        if not np.allclose(values[0] + index * step, cells[:, axis], rtol=0.0, atol=1e-9 * step):
+            return None
+        steps.append((index, step))
+    (i, dx), (j, dy) = steps
+    rows = int(j.max()) + 1
+    offsets = np.abs(i[:, None] - i[None, :]) * np.int32(rows) + np.abs(j[:, None] - j[None, :])
+    return offsets, rows, dx, dy
+
+
+def lattice_kernel(cells: np.ndarray, offsets: np.ndarray, rows: int, dx: float, dy: float,
+                   hyper: Hyper) -> np.ndarray:
+    """kernel(cells, cells) for cells on a regular lattice (`lattice_steps`): the Matérn part read off a table
+    of the offsets, the background plane as `kernel` adds it."""
+    i, j = np.divmod(np.arange(int(offsets.max()) + 1), rows)
+    r = np.hypot(i * dx, j * dy) * (SQRT5 / hyper.length_mm)
+    table = hyper.signal_var * (1.0 + r + r * r / 3.0) * np.exp(-r)
+    prior = table[offsets]
+    prior += (hyper.slope_var / hyper.scale_mm**2) * (cells @ cells.T)
+    prior += hyper.level_var
+    return prior
+
+
 def kernel_to_grid(p: np.ndarray, grid_xy: np.ndarray, hyper: Hyper) -> np.ndarray:
     """kernel(p, grid) for one point, without the n×G distance matrix product (float32: V is float32 too)."""
     grid = grid_xy.astype(np.float32) if grid_xy.dtype != np.float32 else grid_xy
@@ -72,6 +104,7 @@ class IncrementalGP:
         self._grid32 = self.grid_xy.astype(np.float32)
         self.hyper = hyper
         self._lattice_prior = None  # (lattice, hyper, its prior kernel): lattice_covariance
+        self._lattice_steps = None  # (lattice, lattice_steps of its cells)
         self.xy = np.empty((0, 2))
         self.y = np.empty(0)
         self.noise_var = np.empty(0)
@@ -124,9 +157,17 @@ class IncrementalGP:
         self._flush()
         held = self._lattice_prior
         if held is None or held[0] is not lattice or held[1] != self.hyper:
-            cells = self.grid_xy[lattice]
-            held = self._lattice_prior = (lattice, self.hyper, kernel(cells, cells, self.hyper))
+            self.hold_lattice(lattice)
+            cells, steps = self.grid_xy[lattice], self._lattice_steps[1]
+            prior = kernel(cells, cells, self.hyper) if steps is None else lattice_kernel(cells, *steps, self.hyper)
+            held = self._lattice_prior = (lattice, self.hyper, prior)
         return self._posterior(held[2][a][:, b], lattice[a], lattice[b])
+
+    def hold_lattice(self, lattice: np.ndarray) -> None:
+        """Make the lattice's offsets (lattice_steps) that `lattice_covariance` reads a new kernel off, unless held:
+        the learner asks it as it is made (~5 ms for a 60 mm tissue's), not in its first update."""
+        if self._lattice_steps is None or self._lattice_steps[0] is not lattice:
+            self._lattice_steps = (lattice, lattice_steps(self.grid_xy[lattice]))
 
     def _posterior(self, prior: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """The prior covariance of grid cells a and b less what the points have told of both."""
