@@ -417,17 +417,20 @@ def test_the_covering_lattice_leaves_no_spot_beyond_its_reach(width_mm, height_m
 @hsettings(max_examples=12, deadline=None)
 @given(width_mm=st.floats(5.0, 758.0), height_mm=st.floats(5.0, 758.0), grid_points=st.sampled_from([11, 121, 401]))
 @example(width_mm=200.0, height_mm=200.0, grid_points=121)  # 14 641 cells at 2 mm: one probe score 42 s and 12 GB
-def test_the_free_form_probe_score_weighs_a_bounded_lattice_on_any_tissue(width_mm, height_mm, grid_points):
+def test_the_probe_scores_weigh_bounded_lattices_on_any_tissue(width_mm, height_mm, grid_points):
     """The free-form map's probe score weighs every candidate against every cell in doubt, so its cost goes as
     the lattice's cells squared: on any tissue the arm reaches (up to 758 mm) and any grid, at most AREA_CELLS
     cells, none closer than AREA_STEP_MM where the grid allows, and a score for every candidate."""
     from palpd.config import LearnerSettings
     from palpd.learner import Learner
     from palpd.learner.decision import AREA_CELLS, AREA_STEP_MM
+    from palpd.learner.model import COVERAGE_CELLS
 
     learner = Learner((width_mm, height_mm), LearnerSettings(grid_points=grid_points), 0.3)
     lattice, cell_area = learner._area_lattice
     assert len(lattice) <= AREA_CELLS
+    # so is the coverage's, whose best unfelt spot weighs every cell against every other (4.2 s on 140 x 100 mm)
+    assert len(learner.coverage.cells_xy) <= COVERAGE_CELLS
     xs, ys = np.unique(learner.grid_xy[lattice, 0]), np.unique(learner.grid_xy[lattice, 1])
     if len(xs) > 1 and len(ys) > 1:
         assert cell_area == pytest.approx((xs[1] - xs[0]) * (ys[1] - ys[0]))

@@ -100,13 +100,15 @@ def union_of(parts: list[LumpEstimate], size_mm=None) -> LumpEstimate:
 def inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
     """Which points (n, 2) lie inside a closed polygon (its vertices, first repeated last): the even-odd rule,
     a ray along +x crossing the sides. (palpd.metrics asks matplotlib's Path, which the learner, running in
-    the daemon, does not import for this.)"""
-    a, b = polygon[:-1], polygon[1:]
-    px, py = points[:, 0:1], points[:, 1:2]
-    spans = (a[:, 1] > py) != (b[:, 1] > py)
+    the daemon, does not import for this.) Side by side, never points × sides at once: a union of two ellipses
+    across a 140 × 100 mm tissue, 350 000 points on its grid against 200 sides, took 500 MB that way."""
+    px, py = points[:, 0], points[:, 1]
+    inside = np.zeros(len(points), dtype=bool)
     with np.errstate(divide="ignore", invalid="ignore"):
-        x_cross = a[:, 0] + (py - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
-    return (np.count_nonzero(spans & (px < x_cross), axis=1) % 2) == 1
+        for (ax, ay), (bx, by) in zip(polygon[:-1], polygon[1:]):
+            spans = (ay > py) != (by > py)
+            inside ^= spans & (px < ax + (py - ay) * (bx - ax) / (by - ay))
+    return inside
 
 
 def _outline(xs: np.ndarray, ys: np.ndarray, inside: np.ndarray) -> np.ndarray:
