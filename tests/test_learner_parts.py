@@ -444,6 +444,32 @@ def test_the_probe_scores_weigh_bounded_lattices_on_any_tissue(width_mm, height_
     assert gain is None or (gain.shape == (len(cells),) and np.all(np.isfinite(gain)) and gain.min() >= -1e-9)
 
 
+@hsettings(max_examples=15, deadline=None)
+@given(width_mm=st.floats(3.0, 200.0), height_mm=st.floats(3.0, 200.0))
+@example(width_mm=3.0, height_mm=140.0)  # one step for both axes, the x one: 4 x 4 candidates, 47 mm apart along y
+def test_a_tissue_turned_a_quarter_is_read_on_the_same_lattices_turned(width_mm, height_mm):
+    """The probe candidates, the coverage's cells and the free-form score's lattice are as fine along a tissue's
+    long side as across it, within a grid cell of the stride asked, and a tissue turned a quarter has them turned."""
+    from palpd.config import LearnerSettings
+    from palpd.learner import Learner
+    from palpd.learner.decision import CANDIDATE_STRIDE_MM
+
+    def spacings(learner, cells):
+        xy = learner.grid_xy[cells]
+        return tuple(float(np.diff(np.unique(xy[:, axis]))[0]) if len(np.unique(xy[:, axis])) > 1 else math.inf
+                     for axis in (0, 1))
+
+    wide, tall = (Learner(size, LearnerSettings(), 0.3) for size in ((width_mm, height_mm), (height_mm, width_mm)))
+    for lattice in (lambda l: l._candidates(), lambda l: l._area_lattice[0]):
+        x, y = spacings(wide, lattice(wide))
+        assert spacings(tall, lattice(tall)) == pytest.approx((y, x))
+    cells = [len(np.unique(learner.coverage.cells_xy[:, axis])) for learner in (wide, tall) for axis in (0, 1)]
+    assert cells[:2] == cells[2:][::-1]
+    x, y = spacings(wide, wide._candidates())
+    cell_x, cell_y = width_mm / (len(wide.xs) - 1), height_mm / (len(wide.ys) - 1)
+    assert (x == math.inf or x <= max(CANDIDATE_STRIDE_MM, cell_x) + 1e-9) and (y == math.inf or y <= max(CANDIDATE_STRIDE_MM, cell_y) + 1e-9)
+
+
 def test_the_covering_lattice_of_a_60_mm_square_at_11_mm_is_16_points_its_first_half_spread():
     from palpd.learner.design import covering_lattice, lattice_order
 

@@ -646,16 +646,20 @@ class Decision:
         cells = self._candidates()
         return cells, self.grid_xy[cells]
 
-    def _candidates(self, stride_mm: float = CANDIDATE_STRIDE_MM, every: int = 1) -> np.ndarray:
-        """The grid cells at least `stride_mm` apart (row-major); with `every`, every so many of them."""
-        step = self._grid_step(stride_mm) * every
-        rows = np.arange(0, len(self.ys), step)
-        cols = np.arange(0, len(self.xs), step)
+    def _candidates(self, stride_mm: float = CANDIDATE_STRIDE_MM, every: tuple[int, int] = (1, 1)) -> np.ndarray:
+        """The grid cells about `stride_mm` apart along x and along y (row-major); with `every`, every so many of
+        them along each."""
+        step_x, step_y = self._grid_steps(stride_mm)
+        rows = np.arange(0, len(self.ys), step_y * every[1])
+        cols = np.arange(0, len(self.xs), step_x * every[0])
         return (rows[:, None] * len(self.xs) + cols[None, :]).ravel()
 
-    def _grid_step(self, stride_mm: float) -> int:
-        """Grid cells per step of a lattice at least `stride_mm` apart."""
-        return max(1, int(stride_mm / (self.xs[1] - self.xs[0])))
+    def _grid_steps(self, stride_mm: float) -> tuple[int, int]:
+        """Grid cells per step along x and along y of a lattice `stride_mm` apart (never finer than the grid). The
+        grid has as many points along each side, so its cells are as long as the tissue's sides are: one step for
+        both, the x one, made the lattice of a tissue taller than wide coarse along y (3 x 140 mm: 4 x 4
+        candidates, 47 mm apart along it; 20 x 100 mm: rows 5 mm apart) and of a wider one fine across."""
+        return (max(1, int(stride_mm / (self.xs[1] - self.xs[0]))), max(1, int(stride_mm / (self.ys[1] - self.ys[0]))))
 
     def _noise_var(self) -> float:
         """A reading's noise variance as the scores weigh it: the readings' median one and the chosen fit's σ_w
@@ -737,16 +741,23 @@ class Decision:
         the candidate cells), and each one's area; coarser on a tissue where that would be more than AREA_CELLS
         cells: the score weighs every candidate against every cell in doubt, so its time and memory go as the
         cells' square (a 200 mm tissue at 2 mm: 14 641 cells, one score 42 s and 12 GB)."""
-        step = self._grid_step(CANDIDATE_STRIDE_MM)
-        every = self._within(step, max(1, self._grid_step(AREA_STEP_MM) // step), AREA_CELLS)
+        (step_x, step_y), (area_x, area_y) = self._grid_steps(CANDIDATE_STRIDE_MM), self._grid_steps(AREA_STEP_MM)
+        every = self._within(CANDIDATE_STRIDE_MM, (max(1, area_x // step_x), max(1, area_y // step_y)), AREA_CELLS)
         dx, dy = self.xs[1] - self.xs[0], self.ys[1] - self.ys[0]
-        return self._candidates(every=every), float((step * every) ** 2 * dx * dy)
+        return self._candidates(every=every), float(step_x * every[0] * dx * step_y * every[1] * dy)
 
-    def _within(self, step: int, every: int, cells: int) -> int:
-        """`every`, or more: the fewest steps of the lattice `step` grid cells apart that keep it to `cells` cells."""
-        while math.ceil(len(self.xs) / (step * every)) * math.ceil(len(self.ys) / (step * every)) > cells:
-            every += 1
-        return every
+    def _within(self, stride_mm: float, every: tuple[int, int], cells: int) -> tuple[int, int]:
+        """`every`, or coarser until the lattice `_candidates(stride_mm, every)` has at most `cells` cells: a step
+        more at a time along the axis whose cells are closer (along x when they are as close)."""
+        step_x, step_y = self._grid_steps(stride_mm)
+        along_x, along_y = every
+        dx, dy = self.xs[1] - self.xs[0], self.ys[1] - self.ys[0]
+        while math.ceil(len(self.xs) / (step_x * along_x)) * math.ceil(len(self.ys) / (step_y * along_y)) > cells:
+            if step_x * along_x * dx <= step_y * along_y * dy:
+                along_x += 1
+            else:
+                along_y += 1
+        return along_x, along_y
 
     def _readable(self, fit: Fit, xy: np.ndarray) -> np.ndarray | float:
         """The chance a reading at each spot is a stiffness, not 'too stiff' again: the fit's predicted log

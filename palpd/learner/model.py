@@ -66,7 +66,7 @@ class Learner(Decision):
         self.lattice = design.covering_lattice(size_mm, self.none_reach_mm)
         self.design = design.first_design(size_mm, self.lattice, settings.initial_points, seed)
         self.blocked = np.zeros(len(self.grid_xy), dtype=bool)
-        coverage_every = self._within(self._grid_step(COVERAGE_STEP_MM), 1, COVERAGE_CELLS)
+        coverage_every = self._within(COVERAGE_STEP_MM, (1, 1), COVERAGE_CELLS)
         self.coverage = coverage.Readings(self.grid_xy[self._candidates(COVERAGE_STEP_MM, coverage_every)],
                                           settings.min_spacing_mm)
         self.probed: list[tuple[float, float]] = []
