@@ -447,6 +447,7 @@ def test_the_probe_scores_weigh_bounded_lattices_on_any_tissue(width_mm, height_
 @hsettings(max_examples=15, deadline=None)
 @given(width_mm=st.floats(3.0, 200.0), height_mm=st.floats(3.0, 200.0))
 @example(width_mm=3.0, height_mm=140.0)  # one step for both axes, the x one: 4 x 4 candidates, 47 mm apart along y
+@example(width_mm=81.0, height_mm=81.0)  # coarsened along x first on a tie: a square tissue, an oblong lattice
 def test_a_tissue_turned_a_quarter_is_read_on_the_same_lattices_turned(width_mm, height_mm):
     """The probe candidates, the coverage's cells and the free-form score's lattice are as fine along a tissue's
     long side as across it, within a grid cell of the stride asked, and a tissue turned a quarter has them turned."""

@@ -748,12 +748,17 @@ class Decision:
 
     def _within(self, stride_mm: float, every: tuple[int, int], cells: int) -> tuple[int, int]:
         """`every`, or coarser until the lattice `_candidates(stride_mm, every)` has at most `cells` cells: a step
-        more at a time along the axis whose cells are closer (along x when they are as close)."""
+        more at a time along the axis whose cells are closer; as close, along the one with more of them, or both
+        (so a tissue turned a quarter has its lattice turned, and a square one a square lattice)."""
         step_x, step_y = self._grid_steps(stride_mm)
         along_x, along_y = every
         dx, dy = self.xs[1] - self.xs[0], self.ys[1] - self.ys[0]
-        while math.ceil(len(self.xs) / (step_x * along_x)) * math.ceil(len(self.ys) / (step_y * along_y)) > cells:
-            if step_x * along_x * dx <= step_y * along_y * dy:
+        while (count_x := math.ceil(len(self.xs) / (step_x * along_x))) * \
+                (count_y := math.ceil(len(self.ys) / (step_y * along_y))) > cells:
+            apart_x, apart_y = step_x * along_x * dx, step_y * along_y * dy
+            if math.isclose(apart_x, apart_y, rel_tol=1e-9):
+                along_x, along_y = along_x + (count_x >= count_y), along_y + (count_y >= count_x)
+            elif apart_x < apart_y:
                 along_x += 1
             else:
                 along_y += 1
