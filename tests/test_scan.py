@@ -206,6 +206,13 @@ def test_cli_coverage_mm_is_the_reach_a_verdict_claims(tmp_path, run_cli):
     assert result.returncode == 0, result.stderr
     report = json.loads((tmp_path / "r.json").read_text())
     assert report["verdict"] == "none" and report["model"]["unfelt_radius_mm"] <= 8.0, report["model"]
+    # no boundary drawn, nothing for the tolerance to bound: the hint names the one knob that reads closer
+    unfelt = report["model"]["unfelt_radius_mm"]
+    assert f"a lump under {unfelt:.1f} mm in radius could lie unfelt between the readings (a tighter --coverage-mm " \
+           "reads closer)" in result.stdout
+    loose = run_cli("scan", "--scene", scene, "--strategy", "active", "--coverage-mm", "8", "--tolerance-mm", "2",
+                    "--quiet", "--report", tmp_path / "loose.json")
+    assert json.loads((tmp_path / "loose.json").read_text())["palpations"] == report["palpations"], loose.stdout
     assert_one_line_error(run_cli("scan", "--scene", scene, "--strategy", "active", "--coverage-mm", "0"),
                           "learner.coverage_mm")
 
