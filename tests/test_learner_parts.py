@@ -86,6 +86,25 @@ def test_the_lattice_covariance_is_the_covariance_of_its_cells_under_whatever_ke
             gp.refit(Hyper(np.log(0.12), 0.5 + step, 3.0 + 2.0 * step, 1e-4))
 
 
+def test_the_learner_holds_its_score_lattice_s_kernel_from_the_start_and_makes_it_again_only_on_a_new_kernel():
+    """The free-form map's probe score reads a prior kernel over its lattice (7 ms to make on a 60 mm tissue):
+    the learner makes it as it is made, so its first update reads the one held (that update had been the
+    learner's slowest, 50-120 ms), and a relearnt kernel makes it anew, never an old one read on."""
+    from palpd.config import LearnerSettings
+    from palpd.learner import Learner
+
+    learner = Learner((60.0, 60.0), LearnerSettings(initial_points=0, tolerance_mm=1e-6), 0.3)
+    held = learner.gp._lattice_prior
+    assert held is not None and held[0] is learner._area_lattice[0] and held[1] == learner.gp.hyper
+    learner.observe((7.5, -4.0), 0.6, 0.003)
+    learner.next_probe()  # scored by the free-form map's misclassified area: the lattice's covariance read
+    assert learner.gp._lattice_prior is held  # the first update made no kernel
+    for xy in ((-20.0, 15.0), (20.0, 20.0)):
+        learner.observe(xy, 0.12, 0.003)  # the third reading relearns the kernel (model._refit_pays)
+        learner.next_probe()
+    assert learner.gp.hyper != held[1] and learner.gp._lattice_prior[1] == learner.gp.hyper
+
+
 def readings(k_at, points):
     obs = Observations()
     for p in points:
@@ -807,6 +826,27 @@ def test_each_candidates_area_is_the_sum_over_its_own_pairs_whatever_the_cells(s
     exact = np.where(rho > MIN_CORRELATION,
                      ndtr(-np.abs(z))[None, :] - 2.0 * owens_t(np.abs(z)[None, :], np.sqrt(1.0 - safe**2) / safe), 0.0)
     assert got == pytest.approx(2.0 * exact.sum(axis=1), abs=2.0 * 4e-4 * cells)
+
+
+def test_the_first_readings_area_score_read_a_band_of_cells_at_a_time_is_the_whole_sum_bit_for_bit():
+    """While nearly every pair counts (the first readings), misclassified_area_gain reads the table a band of
+    AREA_BLOCK_CELLS cells at a time (the band's rows stay in the cache): every pair's value and every
+    candidate's sum are what the whole candidates × cells array at once gives, to the last bit, over cells
+    that span several bands and one that ends part-way."""
+    from palpd.learner.acquisition import AREA_BLOCK_CELLS, MIN_CORRELATION, _area_taken, misclassified_area_gain
+
+    rng = np.random.default_rng(3)
+    candidates, cells = 7, 2 * AREA_BLOCK_CELLS + 5
+    var_candidates, var_cells, noise = rng.uniform(0.01, 0.1, candidates), rng.uniform(0.01, 0.1, cells), 1e-3
+    bound = np.sqrt((var_candidates[:, None] + noise) * var_cells[None, :])
+    cov = rng.uniform(0.05, 1.0, (candidates, cells)) * rng.choice([-1.0, 1.0], (candidates, cells)) * bound
+    cov[0, :3] = 0.0  # a few pairs under MIN_CORRELATION, counted as nothing
+    z = rng.normal(0.0, 1.5, cells)
+    rho = np.abs(cov) / np.sqrt(var_candidates + noise)[:, None] / np.sqrt(var_cells)[None, :]
+    assert np.count_nonzero(rho > MIN_CORRELATION) > 0.5 * rho.size  # the banded path
+    rho[~(rho > MIN_CORRELATION)] = 0.0
+    whole = 2.0 * _area_taken(np.abs(z), np.arange(cells)[None, :], rho).sum(axis=1)
+    assert np.array_equal(misclassified_area_gain(cov, var_candidates, noise, z, var_cells, 2.0), whole)
 
 
 def test_the_misclassified_area_a_reading_takes_off_is_what_the_field_would_show_after_it():

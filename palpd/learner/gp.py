@@ -155,19 +155,21 @@ class IncrementalGP:
         over the whole lattice computed once while the kernel holds: a fixed lattice asked at every update (the
         free-form map's probe score, ~900 × 900 cells of a 60 mm tissue, whose kernel was 15-20 ms of it)."""
         self._flush()
+        return self._posterior(self.hold_lattice(lattice)[a][:, b], lattice[a], lattice[b])
+
+    def hold_lattice(self, lattice: np.ndarray) -> np.ndarray:
+        """The prior kernel over the lattice that `lattice_covariance` reads, made unless held for this lattice
+        and kernel, read off a table of the lattice's offsets (lattice_steps, made once a lattice). The learner
+        asks it as it is made (~5 ms for a 60 mm tissue's offsets, ~7 for the kernel), so that the first
+        update, whose kernel is the one the learner was made with, pays neither."""
+        if self._lattice_steps is None or self._lattice_steps[0] is not lattice:
+            self._lattice_steps = (lattice, lattice_steps(self.grid_xy[lattice]))
         held = self._lattice_prior
         if held is None or held[0] is not lattice or held[1] != self.hyper:
-            self.hold_lattice(lattice)
             cells, steps = self.grid_xy[lattice], self._lattice_steps[1]
             prior = kernel(cells, cells, self.hyper) if steps is None else lattice_kernel(cells, *steps, self.hyper)
             held = self._lattice_prior = (lattice, self.hyper, prior)
-        return self._posterior(held[2][a][:, b], lattice[a], lattice[b])
-
-    def hold_lattice(self, lattice: np.ndarray) -> None:
-        """Make the lattice's offsets (lattice_steps) that `lattice_covariance` reads a new kernel off, unless held:
-        the learner asks it as it is made (~5 ms for a 60 mm tissue's), not in its first update."""
-        if self._lattice_steps is None or self._lattice_steps[0] is not lattice:
-            self._lattice_steps = (lattice, lattice_steps(self.grid_xy[lattice]))
+        return held[2]
 
     def _posterior(self, prior: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         """The prior covariance of grid cells a and b less what the points have told of both."""

@@ -79,7 +79,7 @@ class Learner(Decision):
         self._pass = None  # the pass of refits under way (many readings: one step per update)
         self._regions = []
         self._cache: dict = {}
-        self.gp.hold_lattice(self._area_lattice[0])  # the free-form map's probe score's lattice, made once
+        self.gp.hold_lattice(self._area_lattice[0])  # the free-form probe score's lattice and its kernel, made once
 
     # -- learning -------------------------------------------------------------------------------
     def observe(self, xy_mm, stiffness_n_per_mm: float | None = None, sd_n_per_mm: float = 0.0, *,
