@@ -847,6 +847,10 @@ def test_the_first_readings_area_score_read_a_band_of_cells_at_a_time_is_the_who
     rho[~(rho > MIN_CORRELATION)] = 0.0
     whole = 2.0 * _area_taken(np.abs(z), np.arange(cells)[None, :], rho).sum(axis=1)
     assert np.array_equal(misclassified_area_gain(cov, var_candidates, noise, z, var_cells, 2.0), whole)
+    given_up = cov.copy()  # the learner's own cov, taken over: the same sums, one fresh array fewer
+    assert np.array_equal(misclassified_area_gain(given_up, var_candidates, noise, z, var_cells, 2.0,
+                                                  overwrite_cov=True), whole)
+    assert not np.array_equal(given_up, cov)
 
 
 def test_the_misclassified_area_a_reading_takes_off_is_what_the_field_would_show_after_it():

@@ -50,7 +50,7 @@ def boundary_gain(fit, xy: np.ndarray, noise_var: float, size_mm=None) -> np.nda
 
 
 def misclassified_area_gain(cov: np.ndarray, var_candidates: np.ndarray, noise_var: float, z: np.ndarray,
-                            var_cells: np.ndarray, cell_area_mm2: float) -> np.ndarray:
+                            var_cells: np.ndarray, cell_area_mm2: float, overwrite_cov: bool = False) -> np.ndarray:
     """The misclassified area (mm²) one reading at each candidate is expected to take off: the stop rule's
     ∫ min(P, 1 − P) dA over cells x, where P = Φ(z_x), z_x = (μ_x − τ_x)/σ_x of a Gaussian field.
 
@@ -59,8 +59,9 @@ def misclassified_area_gain(cov: np.ndarray, var_candidates: np.ndarray, noise_v
     τ, a bivariate normal's two orthants (correlation ρ = s/σ_x), which is 2·T(|z_x|, √(1 − ρ²)/ρ), T Owen's
     function: min(P, 1 − P) itself at ρ = 0, nothing at ρ = 1 (`_area_taken`). cov is candidates × cells; pairs
     correlated by under MIN_CORRELATION are skipped (each would take at most ρ/π of its cell's area off, at the
-    boundary itself: on the half-stiff and garg maps the best candidate's gain moved by 0.02 mm² of 1-11)."""
-    rho = np.abs(cov)
+    boundary itself: on the half-stiff and garg maps the best candidate's gain moved by 0.02 mm² of 1-11).
+    `overwrite_cov`: cov is the caller's to give up, and holds the correlations after (one fresh array fewer)."""
+    rho = np.abs(cov, out=cov) if overwrite_cov else np.abs(cov)
     rho /= np.sqrt(var_candidates + noise_var)[:, None]
     rho /= np.sqrt(var_cells)[None, :]
     counted = rho > MIN_CORRELATION
@@ -70,11 +71,10 @@ def misclassified_area_gain(cov: np.ndarray, var_candidates: np.ndarray, noise_v
         # what each pair takes, read a band of cells at a time: a band's rows of the table interpolated at its
         # cells' z (AREA_BLOCK_CELLS × 361) stay in the cache while every candidate reads them, where all the
         # cells' rows (2.8 MB on a 60 mm tissue) did not: the same values, summed as before (18-22 ms → 8-13)
-        taken = np.empty(rho.shape)
-        for start in range(0, len(z), AREA_BLOCK_CELLS):
+        for start in range(0, len(z), AREA_BLOCK_CELLS):  # each band's ρ replaced by what its pairs take
             band = slice(start, start + AREA_BLOCK_CELLS)
-            taken[:, band] = _area_taken(z[band], np.arange(len(z[band]))[None, :], rho[:, band])
-        return cell_area_mm2 * taken.sum(axis=1)
+            rho[:, band] = _area_taken(z[band], np.arange(len(z[band]))[None, :], rho[:, band])
+        return cell_area_mm2 * rho.sum(axis=1)
     rows, cols = np.nonzero(counted)  # later ones: a reading's correlations fall off, pairs are fewer
     return cell_area_mm2 * np.bincount(rows, weights=_area_taken(z, cols, rho[rows, cols]),
                                        minlength=len(var_candidates))

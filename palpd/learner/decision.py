@@ -730,7 +730,8 @@ class Decision:
         candidates = lattice[open_]
         noise = float(np.median(self.obs.sd**2)) + self.gp.hyper.white_var
         cov = self.gp.lattice_covariance(lattice, open_, np.flatnonzero(doubt))
-        gain = acquisition.misclassified_area_gain(cov, self.gp.var[candidates], noise, z[doubt], var[doubt], area)
+        gain = acquisition.misclassified_area_gain(cov, self.gp.var[candidates], noise, z[doubt], var[doubt], area,
+                                                   overwrite_cov=True)
         score = np.zeros(len(cells))
         score[np.searchsorted(cells, candidates)] = gain  # the lattice is one of the candidate cells' (both row-major)
         return score

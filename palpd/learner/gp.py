@@ -155,7 +155,7 @@ class IncrementalGP:
         over the whole lattice computed once while the kernel holds: a fixed lattice asked at every update (the
         free-form map's probe score, ~900 × 900 cells of a 60 mm tissue, whose kernel was 15-20 ms of it)."""
         self._flush()
-        return self._posterior(self.hold_lattice(lattice)[a][:, b], lattice[a], lattice[b])
+        return self._posterior(self.hold_lattice(lattice)[np.ix_(a, b)], lattice[a], lattice[b])  # one copy, not two
 
     def hold_lattice(self, lattice: np.ndarray) -> np.ndarray:
         """The prior kernel over the lattice that `lattice_covariance` reads, made unless held for this lattice
@@ -172,8 +172,12 @@ class IncrementalGP:
         return held[2]
 
     def _posterior(self, prior: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """The prior covariance of grid cells a and b less what the points have told of both."""
-        return prior if not self.n else prior - self._columns(a).T @ self._columns(b)
+        """The prior covariance of grid cells a and b (`prior`, a fresh array: taken over) less what the points
+        have told of both. In place: a first update's arrays are ~900 × 900, each a fresh 7 MB whose page
+        faults that update pays."""
+        if self.n:
+            prior -= self._columns(a).T @ self._columns(b)
+        return prior
 
     def _columns(self, cells: np.ndarray) -> np.ndarray:
         """V's columns for the cells (n × len(cells)), in float64."""
