@@ -1199,7 +1199,7 @@ def test_one_ellipse_over_a_lump_and_a_neighbours_edge_is_read_where_two_circles
 
 
 def test_a_satellite_hole_is_the_widest_gap_beside_the_lumps_and_none_once_read_closely():
-    """coverage.satellite_hole: cells outside the lumps within 3 radii of one, farther than reach x radius from
+    """coverage.satellite_holes' hole: cells outside the lumps within 3 radii of one, farther than reach x radius from
     every palpation; the farthest of them first, nothing inside a lump or far from all of them."""
     from palpd.learner import coverage
 
@@ -1213,18 +1213,18 @@ def test_a_satellite_hole_is_the_widest_gap_beside_the_lumps_and_none_once_read_
         return readings
 
     centres_and_edges = np.array([(-8, 0), (4, 0), (-14, 0), (10, 0), (-8, 6), (-8, -6), (4, 6), (4, -6), (-2, 0)], float)
-    hole = coverage.satellite_hole(discs, read(centres_and_edges), 1.5, 1.5)
+    hole = coverage.satellite_holes(discs, read(centres_and_edges), 1.5, 1.5)[0]
     assert hole is not None
     assert min(np.hypot(*(centres_and_edges - hole).T)) > 7.5  # a spot no reading is within 1.5 R of
     assert min(math.dist(hole, c) for c, _ in discs) <= 15.0  # beside a lump (within 3 R), not across the tissue
     assert all(math.dist(hole, c) > r for c, r in discs)  # never inside a found lump
     lattice = [(x, y) for x in np.arange(-30.0, 31.0, 5.0) for y in np.arange(-30.0, 31.0, 5.0)]
-    assert coverage.satellite_hole(discs, read(lattice), 1.5, 1.5) is None  # read 5 mm apart: no hole of 7.5 mm
-    assert coverage.satellite_hole(discs, read(centres_and_edges), 4.0, 1.5) is None  # a reach of 4 R: none
+    assert coverage.satellite_holes(discs, read(lattice), 1.5, 1.5)[0] is None  # read 5 mm apart: no hole of 7.5 mm
+    assert coverage.satellite_holes(discs, read(centres_and_edges), 4.0, 1.5)[0] is None  # a reach of 4 R: none
     tried = read(centres_and_edges)
     tried.probed(hole)  # a palpation there that gave no reading
     assert tried.distance_mm.max() == read(centres_and_edges).distance_mm.max()  # it is no reading...
-    again = coverage.satellite_hole(discs, tried, 1.5, 1.5)
+    again = coverage.satellite_holes(discs, tried, 1.5, 1.5)[0]
     assert again is None or math.dist(again, hole) > 7.5  # ...but that hole was looked at
 
 
@@ -1234,7 +1234,7 @@ def test_a_satellite_hole_is_the_widest_gap_beside_the_lumps_and_none_once_read_
 @hsettings(max_examples=40, deadline=None)
 def test_the_share_of_the_cells_beside_the_lumps_in_a_hole_is_what_a_count_of_them_says_and_readings_only_shrink_it(
         points, more, reach):
-    """coverage.satellite_hole_share, which the stop rule turns into the chance that no lump as small as the
+    """coverage.satellite_holes' share, which the stop rule turns into the chance that no lump as small as the
     smallest found lies unfelt beside them (decision._satellites_in_doubt): the share of the cells outside
     the lumps within 3 radii of one that lie farther than reach x the smallest radius from every probe, counted
     cell by cell; 0 exactly when there is no satellite hole; never larger after more palpations."""
@@ -1246,15 +1246,15 @@ def test_the_share_of_the_cells_beside_the_lumps_in_a_hole_is_what_a_count_of_th
     readings = coverage.Readings(cells, 1.5)
     for xy in points:
         readings.add(xy)
-    share = coverage.satellite_hole_share(discs, readings, reach, 1.5)
+    share = coverage.satellite_holes(discs, readings, reach, 1.5)[1]
     d = [np.hypot(*(cells - c).T) for c, _ in discs]
     beside = np.any([di <= 3.0 * r for di, (_, r) in zip(d, discs)], axis=0) & np.all([di > r for di, (_, r) in zip(d, discs)], axis=0)
     nearest = np.min([np.hypot(*(cells - np.asarray(xy)).T) for xy in points], axis=0)
     assert share == pytest.approx(np.count_nonzero(beside & (nearest > reach * 5.0)) / np.count_nonzero(beside))
-    assert (share == 0.0) == (coverage.satellite_hole(discs, readings, reach, 1.5) is None)
+    assert (share == 0.0) == (coverage.satellite_holes(discs, readings, reach, 1.5)[0] is None)
     for xy in more:
         readings.add(xy)
-    assert coverage.satellite_hole_share(discs, readings, reach, 1.5) <= share
+    assert coverage.satellite_holes(discs, readings, reach, 1.5)[1] <= share
 
 
 def test_a_satellite_hole_beside_a_large_lump_is_one_a_lump_as_small_as_the_smallest_found_could_lie_in():
@@ -1270,10 +1270,10 @@ def test_a_satellite_hole_beside_a_large_lump_is_one_a_lump_as_small_as_the_smal
              [(-12.0, -22.0), (12.0, -22.0), (0.0, -34.0), (-30.0, -30.0), (30.0, -30.0)]
     for xy in probes:
         readings.add(xy)
-    hole = coverage.satellite_hole([large, small], readings, 1.5, 1.5)
+    hole = coverage.satellite_holes([large, small], readings, 1.5, 1.5)[0]
     assert hole is not None and hole[1] < -10.0  # below the large lump, where no probe is within 9 mm
     assert 9.0 < min(math.dist(hole, p) for p in probes) < 14.25  # a hole only a lump as small as 6 mm is held to
-    assert coverage.satellite_hole([large], readings, 1.5, 1.5) is None  # alone, the large lump holds it to 14.25
+    assert coverage.satellite_holes([large], readings, 1.5, 1.5)[0] is None  # alone, the large lump holds it to 14.25
 
 
 def test_a_satellite_hole_probed_without_a_reading_is_not_asked_for_again():

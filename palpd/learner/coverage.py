@@ -29,7 +29,7 @@ CONFIRM_RHO = 0.6
 EDGE_LEVEL = math.log(9.0)  # the edge band: where the lump's profile is between 10 % and 90 % of its height
 MAX_GAP_RAD = 2.0 * math.pi / 3.0  # no third of a turn of edge unread
 OUTSIDE_STEPS = 36
-CLUSTER_LUMPS = 2  # lumps found together, the closer look around them begins (satellite_hole)
+CLUSTER_LUMPS = 2  # lumps found together, the closer look around them begins (satellite_holes)
 SATELLITE_GAP = 1.0  # a satellite's edge within this many of its neighbour's radii of the neighbour's edge
 UNFELT_RADII = 48  # radii the unfelt area is summed over, log-spaced (unfelt_area_mm2)
 UNFELT_BLOCK = 256  # candidate spots weighed at once (best_unfelt_spot): a block's distances to every cell
@@ -149,8 +149,9 @@ def hidden_lump_spot(excess: np.ndarray, readings_xy: np.ndarray, readings: "Rea
     return cells[best] if joint[best] >= JOINT_SIGMA else None
 
 
-def satellite_hole(discs, readings: "Readings", reach: float, spacing_mm: float) -> np.ndarray | None:
-    """The middle of the widest hole between probes beside the found lumps, or None.
+def satellite_holes(discs, readings: "Readings", reach: float, spacing_mm: float) -> tuple[np.ndarray | None, float]:
+    """(the middle of the widest satellite hole or None, the share of the cells beside the found lumps in one:
+    where a lump as small as the smallest found could lie unfelt), at once.
 
     Lumps found together come close together (four-lumps, touching-lumps: edges 2-4 mm apart), and a lump
     with a sharp edge is felt only by a reading inside it, so the tissue-wide `coverage_mm` (a hole of up to
@@ -166,19 +167,6 @@ def satellite_hole(discs, readings: "Readings", reach: float, spacing_mm: float)
     a palpation there that gave no stiffness (no contact, a rejected trace) would give none again, and the
     hole would draw probe after probe. The cell farthest from every probe is the middle of the widest such
     hole."""
-    return satellite_holes(discs, readings, reach, spacing_mm)[0]
-
-
-def satellite_hole_share(discs, readings: "Readings", reach: float, spacing_mm: float) -> float:
-    """The share of the cells beside the found lumps (satellite_hole's) that lie in such a hole: where a lump as
-    small as the smallest found could lie unfelt."""
-    return satellite_holes(discs, readings, reach, spacing_mm)[1]
-
-
-def satellite_holes(discs, readings: "Readings", reach: float, spacing_mm: float) -> tuple[np.ndarray | None, float]:
-    """(satellite_hole, satellite_hole_share) at once: the cells beside the found lumps (outside each, within
-    (2 + SATELLITE_GAP) of its radii of its centre), those of them farther than reach·r from every probe (r the
-    smallest found radius; never below the probe spacing), the middle of the widest and their share."""
     cells_xy, distance = readings.cells_xy, readings.probe_distance_mm
     inside = np.zeros(len(cells_xy), dtype=bool)
     beside = np.zeros(len(cells_xy), dtype=bool)

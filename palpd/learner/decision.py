@@ -339,7 +339,7 @@ class Decision:
 
     def _satellite_hole(self) -> np.ndarray | None:
         """Once the chosen model has CLUSTER_LUMPS lumps or more: the middle of the widest hole between palpations
-        beside them wider than `satellite_reach` of a lump's radius (coverage.satellite_hole), or None. A
+        beside them wider than `satellite_reach` of a lump's radius (coverage.satellite_holes), or None. A
         single lump is left to `coverage_mm`: a closer look around every lump would cost most scans 5-10
         palpations (the median is a single-lump scan)."""
         return self._satellite_holes()[0]
