@@ -43,7 +43,12 @@ class Hyper:
 def kernel(a: np.ndarray, b: np.ndarray, hyper: Hyper) -> np.ndarray:
     r = np.sqrt(np.maximum(_sq_dist(a, b), 0.0)) * (SQRT5 / hyper.length_mm)
     plane = hyper.level_var + hyper.slope_var * (a @ b.T) / hyper.scale_mm**2
-    return hyper.signal_var * (1.0 + r + r * r / 3.0) * np.exp(-r) + plane
+    return _matern(r, hyper) + plane
+
+
+def _matern(r: np.ndarray, hyper: Hyper) -> np.ndarray:
+    """The Matérn 5/2 part at scaled distances r = √5·d/ℓ."""
+    return hyper.signal_var * (1.0 + r + r * r / 3.0) * np.exp(-r)
 
 
 def lattice_steps(cells: np.ndarray) -> tuple[np.ndarray, int, float, float] | None:
@@ -71,8 +76,7 @@ def lattice_kernel(cells: np.ndarray, offsets: np.ndarray, rows: int, dx: float,
     of the offsets, the background plane as `kernel` adds it."""
     i, j = np.divmod(np.arange(int(offsets.max()) + 1), rows)
     r = np.hypot(i * dx, j * dy) * (SQRT5 / hyper.length_mm)
-    table = hyper.signal_var * (1.0 + r + r * r / 3.0) * np.exp(-r)
-    prior = table[offsets]
+    prior = _matern(r, hyper)[offsets]
     plane = cells @ cells.T  # (in place: each pair-sized array a fresh 7 MB on a 60 mm tissue)
     plane *= hyper.slope_var / hyper.scale_mm**2
     prior += plane
