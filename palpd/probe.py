@@ -1,8 +1,9 @@
 """What one palpation found: a stiffness, a bound, or a named reason why not, always where it was aimed.
 
 `judge` turns a finished palpation record into a Probe. A palpation that reached the force limit before
-it gave a stiffness is `too_stiff`, a censored reading: the stiffness is at least the force reached over the
-deepest indentation (plus two encoder steps, so the bound never overstates it); one that pressed to full
+it gave a stiffness, or with one too uncertain to say more than the bound (BOUND_OVER_FIT_REL_SD), is
+`too_stiff`, a censored reading: the stiffness is at least the force reached over the deepest indentation (plus
+two encoder steps, so the bound never overstates it); one that pressed to full
 depth with no force rising out of the noise is `too_soft`: at most that force (plus three noise sds) over
 that depth, or, when the threshold never fired all the way down yet the trace shows a rise too faint to fit,
 at most the threshold over the depth reached below the nominal surface. Neither is missing data: the learner takes them as bounds.
@@ -16,6 +17,13 @@ from palpd.stiffness import FitRejected, StiffnessResult
 from palpd.stiffness.palpation import fit_palpation
 
 DEPTH_RESOLUTION_MM = 0.05  # two encoder steps at the tip (~23 µm each)
+# A press the force limit stopped short of the reference depth gives its stiffness there only by extrapolating its
+# fit; beyond this relative sd the fit says less than the bound the press gives for sure (force over depth), and
+# the bound is the reading. The learner gives a bound a log sd of 0.25 where it weighs it as a value
+# (learner.model.CENSORED_SD), a fit its relative sd: past this they trade places. Kept as fits, a 50 N/mm lump
+# in 0.12 N/mm tissue read 91.8 ± 201 and 72.9 ± 202 N/mm, readings as likely under plain tissue, and the scan
+# said "no lump" at weight 1.000; a 15 N/mm one in 5 N/mm tissue, 16.2 ± 11.7 and 15.3 ± 9.1, the same.
+BOUND_OVER_FIT_REL_SD = 0.25
 NO_FIT = ("too_few_samples", "no_range", "no_rise", "constant_force", "not_converged")
 
 
@@ -81,6 +89,9 @@ def judge(record: PalpationRecord, settings) -> Probe:
     deepest_mm = max(record.depth_mm, default=0.0)
     if record.stop_reason == "force" and deepest_mm < MIN_SLOPE_DEPTH_MM:
         return _too_stiff(record, f"force limit {deepest_mm:.3f} mm in, under the {MIN_SLOPE_DEPTH_MM} mm a slope needs")
+    if record.stop_reason == "force" and fit.stiffness_se_n_per_mm > BOUND_OVER_FIT_REL_SD * fit.stiffness_n_per_mm:
+        return _too_stiff(record, f"force limit {deepest_mm:.3f} mm in: its fit, {fit.stiffness_n_per_mm:.3g} ± "
+                                  f"{fit.stiffness_se_n_per_mm:.2g} N/mm, says less than the bound")
     return Probe(record, fit)
 
 
